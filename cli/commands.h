@@ -1,0 +1,13 @@
+// Each `lightfarm` subcommand lives in its own file and registers itself on the app.
+// Commands throw (OptionError, SceneError, std::runtime_error); main() alone turns errors into
+// a one-line message on stderr and a non-zero exit code.
+#pragma once
+
+#include <CLI/CLI.hpp>
+
+namespace lightfarm::cli {
+
+void AddRenderCommand(CLI::App& app);
+void AddCompareCommand(CLI::App& app);
+
+}  // namespace lightfarm::cli

@@ -1,0 +1,48 @@
+// `lightfarm`: the command-line entry point. The only place (with the gRPC service boundary)
+// where errors become a one-line message and an exit code.
+#include <spdlog/spdlog.h>
+#include <xmmintrin.h>
+#include <pmmintrin.h>
+
+#include <CLI/CLI.hpp>
+#include <iostream>
+
+#include "cli/commands.h"
+#include "common/util/error.h"
+
+int main(int argc, char** argv) {
+  // Flush denormals to zero before the first oneTBB task so every worker thread inherits it
+  // (DESIGN.md pitfalls): denormal arithmetic in BSDF tails is slow and meaningless here.
+  _MM_SET_FLUSH_ZERO_MODE(_MM_FLUSH_ZERO_ON);
+  _MM_SET_DENORMALS_ZERO_MODE(_MM_DENORMALS_ZERO_ON);
+  spdlog::set_pattern("%^[%l]%$ %v");
+  spdlog::set_level(spdlog::level::warn);
+
+  CLI::App app{"lightfarm: many-light rendering of pbrt-v4 scenes"};
+  app.require_subcommand(1);
+  app.set_version_flag("--version", std::string(LIGHTFARM_VERSION));
+  lightfarm::cli::AddRenderCommand(app);
+  lightfarm::cli::AddCompareCommand(app);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::CallForHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForAllHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForVersion& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    std::cerr << "lightfarm: " << e.what() << "\n";
+    return 2;
+  } catch (const lightfarm::SceneError& e) {
+    std::cerr << "lightfarm: " << e.what() << "\n";
+    return 1;
+  } catch (const lightfarm::OptionError& e) {
+    std::cerr << "lightfarm: " << e.what() << "\n";
+    return 2;
+  } catch (const std::exception& e) {
+    std::cerr << "lightfarm: " << e.what() << "\n";
+    return 1;
+  }
+  return 0;
+}

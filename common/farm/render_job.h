@@ -1,0 +1,61 @@
+// A render job on one machine: scene → plan (receivers, lights) → gather tasks → film → image.
+// The farm (coordinator/worker) runs the same plan and tasks; this is the embedded path
+// `lightfarm render` uses.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "common/gather/gather.h"
+#include "common/image/image.h"
+#include "common/lights/virtual_light.h"
+#include "common/receivers/receivers.h"
+#include "common/scene/effects.h"
+#include "common/scene/scene.h"
+
+namespace lightfarm {
+
+struct RenderSettings {
+  std::string method = "brute";
+  int width = 0, height = 0;  // 0: the scene's Film resolution
+  int spp = 1;
+  size_t lights = 10000;
+  uint64_t seed = 0;
+  std::vector<std::string> params;  // KEY=VALUE (--param)
+};
+
+// Everything a gather needs, built once per job (deterministic in the job seed).
+struct Plan {
+  std::unique_ptr<Scene> scene;
+  Effects effects;
+  ReceiverSet receivers;
+  LightSet lights;
+  std::unique_ptr<LightingMatrix> matrix;
+  std::unique_ptr<GatherMethod> method;
+  std::vector<SubMatrixTask> tasks;
+  MatrixOptions matrix_options;
+  double clamp = 0;
+};
+
+struct PhaseTimes {
+  std::vector<std::pair<std::string, double>> phases;  // in order of execution
+  void Add(const std::string& name, double seconds) { phases.emplace_back(name, seconds); }
+};
+
+struct RenderOutput {
+  Image image;
+  nlohmann::json stats;
+};
+
+using ProgressFn = std::function<void(const std::string& phase, size_t done, size_t total)>;
+
+// Parses, builds and renders. Throws SceneError / OptionError / std::runtime_error.
+RenderOutput RenderScene(const std::string& scene_path, const RenderSettings& settings,
+                         const ProgressFn& progress = nullptr);
+
+}  // namespace lightfarm

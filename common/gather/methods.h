@@ -1,0 +1,12 @@
+// Factories of the gather methods; each is defined in its own file in this folder.
+#pragma once
+
+#include <memory>
+
+#include "common/gather/gather.h"
+
+namespace lightfarm {
+
+std::unique_ptr<GatherMethod> CreateBruteForceGather(const OptionMap& params);
+
+}  // namespace lightfarm

@@ -1,0 +1,38 @@
+// Reading and writing images through OpenImageIO, and resampling between resolutions.
+// Every function throws std::runtime_error naming the file and OpenImageIO's reason on failure.
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+#include "common/image/image.h"
+
+namespace lightfarm {
+
+// Reads the first subimage of any format OpenImageIO understands (EXR, PNG, HDR, TIFF, ...)
+// as linear float RGB. The first three channels are taken; an image with fewer than three
+// channels is read as grey from its first channel. Integer formats are normalised to [0, 1]
+// without colour decoding (an 8-bit PNG is returned as its encoded values / 255). An EXR whose
+// data window is smaller than its display window is returned at display-window size, black
+// outside the data window.
+Image ReadImage(const std::string& path);
+
+// Writes linear float RGB OpenEXR (32-bit float channels R, G, B; zip compression).
+// The file is written to a temporary file in the same directory and renamed over `path`, so a
+// failed write never leaves a partial `path` behind (nor replaces an existing one).
+void WriteEXR(const std::string& path, const Image& image);
+
+// Writes an 8-bit sRGB PNG: each channel is clamp(x · exposure, 0, 1) (NaN → 0), encoded with
+// the sRGB OETF and rounded to the nearest 8-bit value. Temporary file + rename as WriteEXR.
+void WritePNG(const std::string& path, const Image& image, float exposure = 1.f);
+
+// Resamples `image` to width × height with ImageBufAlgo::resize (see image_io.cpp for the
+// filter choice). Downsampling preserves the image mean (exactly for integer ratios).
+Image ResizeImage(const Image& image, int width, int height);
+
+// The sRGB OETF (IEC 61966-2-1) of a linear value in [0, 1], and its 8-bit quantisation as
+// WritePNG applies it. Exposed for tests and for callers that encode colours themselves.
+float LinearToSRGB(float linear);
+uint8_t LinearToSRGB8(float linear);
+
+}  // namespace lightfarm

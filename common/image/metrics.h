@@ -1,0 +1,37 @@
+// Image error metrics used to compare a method's output with a reference render, and an
+// error heatmap for looking at where the error is.
+#pragma once
+
+#include "common/image/image.h"
+
+namespace lightfarm {
+
+struct ErrorMetrics {
+  double rel_l2 = 0;  // ‖ref − img‖₂ / ‖ref‖₂ over all pixel channels (Hašan 2007, MRCS)
+  double rel_l1 = 0;  // ‖ref − img‖₁ / ‖ref‖₁ over all pixel channels (Huo 2016)
+  double rmse = 0;    // sqrt(mean over all pixel channels of (ref − img)²)
+};
+
+// Computed in double. Throws std::runtime_error if the sizes differ, an image is empty, either
+// image holds a NaN/Inf (the metrics would be meaningless), or the reference is all zero
+// (relative errors undefined).
+ErrorMetrics CompareImages(const Image& reference, const Image& image);
+
+// Top of the heatmap scale when none is given: an absolute error of 20% of the reference's
+// mean luminance (or more) gets the brightest colour.
+inline constexpr float kDefaultHeatmapMaxError = 0.2f;
+
+// Per-pixel error e = Luminance(|ref − img|) / mean Luminance(ref). Relative to the *mean*
+// rather than to each pixel's own value, so dark pixels don't explode and bright ones don't
+// hide. e is mapped linearly from [0, max_error] (clamped) onto HeatmapColor. The result holds
+// linear RGB, so WritePNG(path, heatmap) (exposure 1) writes the colour map's sRGB colours.
+// Throws as CompareImages does (sizes, non-finite, zero reference) and for max_error <= 0.
+Image ErrorHeatmap(const Image& reference, const Image& image,
+                   float max_error = kDefaultHeatmapMaxError);
+
+// The heatmap's colour map at t ∈ [0, 1] (clamped), linear RGB: near-black → violet → red →
+// orange → pale yellow, with OKLab lightness rising linearly in t (perceptually ordered, still
+// readable in greyscale), in the spirit of matplotlib's "inferno".
+RGB HeatmapColor(float t);
+
+}  // namespace lightfarm

@@ -1,0 +1,300 @@
+#include "common/lights/light_generation.h"
+
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include "common/util/rng.h"
+#include "common/util/sampling.h"
+
+namespace lightfarm {
+
+namespace {
+
+// One emitter as a source of particle paths.
+struct EmitterRef {
+  enum Kind { kArea, kPoint, kDistant, kInfinite } kind;
+  uint32_t index;
+  RGB power;  // emitted power Φ
+};
+
+std::vector<EmitterRef> CollectEmitters(const Scene& scene, float scene_radius) {
+  std::vector<EmitterRef> out;
+  for (uint32_t i = 0; i < scene.area_emitters().size(); ++i)
+    out.push_back({EmitterRef::kArea, i, scene.area_emitters()[i].Power()});
+  for (uint32_t i = 0; i < scene.point_emitters().size(); ++i) {
+    const PointEmitter& e = scene.point_emitters()[i];
+    float solid_angle = e.spot ? 2 * kPi * (1 - 0.5f * (e.cos_falloff_start + e.cos_falloff_end))
+                               : 4 * kPi;
+    out.push_back({EmitterRef::kPoint, i, e.intensity * solid_angle});
+  }
+  float disk = kPi * scene_radius * scene_radius;
+  for (uint32_t i = 0; i < scene.distant_emitters().size(); ++i)
+    out.push_back({EmitterRef::kDistant, i, scene.distant_emitters()[i].L * disk});
+  for (uint32_t i = 0; i < scene.infinite_emitters().size(); ++i)
+    out.push_back({EmitterRef::kInfinite, i,
+                   scene.infinite_emitters()[i].AverageRadiance() * (4 * kPi * disk)});
+  return out;
+}
+
+// A ray leaving an emitter, with the flux it carries (already divided by its pdf).
+struct EmittedRay {
+  Ray ray;
+  RGB beta;
+  Vec3 ng;  // emitter surface normal (area lights), for the origin offset
+  bool valid = false;
+};
+
+EmittedRay SampleEmission(const Scene& scene, const EmitterRef& e, Vec3 center, float radius,
+                          Rng& rng) {
+  EmittedRay out;
+  Vec2 u1{rng.Uniform(), rng.Uniform()}, u2{rng.Uniform(), rng.Uniform()};
+  switch (e.kind) {
+    case EmitterRef::kArea: {
+      const AreaEmitter& a = scene.area_emitters()[e.index];
+      Vec3 p, n;
+      scene.SampleAreaEmitter(a, u1, &p, &n);
+      Vec3 local = SampleCosineHemisphere(u2);
+      float side = 1.f;
+      if (a.two_sided && rng.Uniform() < 0.5f) side = -1.f;
+      Frame f(n * side);
+      Vec3 d = f.FromLocal(local);
+      if (local.z <= 0) return out;
+      // Φ-weighted: pdf = 1/A · cos/π (· 1/2 two-sided); L·cos/pdf = L·A·π (·2).
+      out.beta = a.L * (a.area * kPi * (a.two_sided ? 2.f : 1.f));
+      out.ray = {OffsetRayOrigin(p, n, d), d, kInfinity};
+      out.ng = n;
+      break;
+    }
+    case EmitterRef::kPoint: {
+      const PointEmitter& pe = scene.point_emitters()[e.index];
+      Vec3 d;
+      float pdf;
+      if (pe.spot) {
+        Frame f(pe.axis);
+        d = f.FromLocal(SampleUniformCone(u1, pe.cos_falloff_end));
+        pdf = UniformConePdf(pe.cos_falloff_end);
+      } else {
+        d = SampleUniformSphere(u1);
+        pdf = kUniformSpherePdf;
+      }
+      out.beta = pe.intensity * (pe.Falloff(d) / pdf);
+      out.ray = {pe.position, d, kInfinity};
+      break;
+    }
+    case EmitterRef::kDistant: {
+      const DistantEmitter& de = scene.distant_emitters()[e.index];
+      Frame f(de.direction);
+      Vec2 pd = SampleUniformDiskConcentric(u1) * radius;
+      Vec3 o = center - de.direction * radius + f.s * pd.x + f.t * pd.y;
+      out.beta = de.L * (kPi * radius * radius);
+      out.ray = {o, de.direction, kInfinity};
+      break;
+    }
+    case EmitterRef::kInfinite: {
+      const InfiniteEmitter& ie = scene.infinite_emitters()[e.index];
+      float pdf;
+      Vec3 w = ie.SampleDirection(u1, &pdf);  // towards the environment
+      if (!(pdf > 0)) return out;
+      Frame f(-w);
+      Vec2 pd = SampleUniformDiskConcentric(u2) * radius;
+      Vec3 o = center + w * radius + f.s * pd.x + f.t * pd.y;
+      out.beta = ie.Le(w) * (kPi * radius * radius / pdf);
+      out.ray = {o, -w, kInfinity};
+      break;
+    }
+  }
+  out.valid = out.beta.IsFinite() && !out.beta.IsBlack() && IsFinite(out.ray.o) &&
+              IsFinite(out.ray.d);
+  return out;
+}
+
+// Traces one particle path and appends its surface VPLs (power not yet divided by #paths).
+void TraceParticlePath(const Scene& scene, const EmitterRef& e, float p_select, Vec3 center,
+                       float radius, int max_depth, Rng& rng, std::vector<VirtualLight>* out) {
+  EmittedRay em = SampleEmission(scene, e, center, radius, rng);
+  if (!em.valid) return;
+  RGB beta = em.beta / p_select;
+  const float beta0 = std::max(beta.Max(), 1e-30f);
+  Ray ray = em.ray;
+  bool through_specular = false;
+  int bounces = 0;      // scattering events so far
+  int passthrough = 0;  // interface crossings (not scattering)
+  while (bounces < max_depth - 1) {
+    SurfaceHit hit;
+    if (!scene.Intersect(ray, &hit)) return;
+    const Shape& shape = scene.shapes()[hit.shape];
+    const Material& m = scene.materials()[shape.material];
+    uint32_t flags = MaterialFlags(m);
+    Vec3 wo = -ray.d;
+    if (flags == 0) {  // interface: no surface, continue straight through
+      if (++passthrough > 64) return;
+      ray.o = OffsetRayOrigin(hit.p, hit.ng, ray.d);
+      continue;
+    }
+    ++bounces;
+    Frame frame(hit.ns);
+    if (!IsPurelySpecular(flags)) {
+      VirtualLight v;
+      v.kind = VirtualLightKind::kSurfaceVPL;
+      v.p = hit.p;
+      v.n = hit.ns;
+      v.ng = hit.ng;
+      v.wi = wo;
+      v.power = beta;
+      v.material = uint32_t(shape.material);
+      v.depth = uint8_t(std::min(bounces, 255));
+      v.caustic = through_specular;
+      out->push_back(v);
+    }
+    if (bounces >= max_depth - 1) return;  // no later vertex could reach a receiver in budget
+    // Continue the path (importance transport: wo points back towards the light).
+    Vec3 wo_local = frame.ToLocal(wo);
+    auto bs = SampleBSDF(m, wo_local, rng.Uniform(), {rng.Uniform(), rng.Uniform()},
+                         TransportMode::kImportance);
+    if (!bs || !(bs->pdf > 0) || bs->f.IsBlack()) return;
+    Vec3 wi = frame.FromLocal(bs->wi);
+    // Shading-normal correction for importance transport (Veach 1997, Sec. 5.3).
+    float denom = AbsDot(wo, hit.ng) * std::abs(bs->wi.z);
+    if (!(denom > 0)) return;
+    float correction = AbsDot(wo, hit.ns) * AbsDot(wi, hit.ng) / denom;
+    beta *= bs->f * (std::abs(bs->wi.z) * correction / bs->pdf);
+    if (!beta.IsFinite() || beta.IsBlack()) return;
+    // A direction on the wrong side of the true surface would leak through it.
+    bool same_side = Dot(wi, hit.ng) * Dot(wo, hit.ng) > 0;
+    if (same_side != ((bs->flags & kBxDFReflection) != 0)) return;
+    through_specular = through_specular || bs->IsSpecular();
+    // Russian roulette on throughput relative to the emitted flux.
+    if (bounces > 2) {
+      float q = std::min(1.f, beta.Max() / beta0);
+      if (rng.Uniform() >= q) return;
+      beta = beta / q;
+    }
+    ray = {OffsetRayOrigin(hit.p, hit.ng, wi), wi, kInfinity};
+  }
+}
+
+}  // namespace
+
+LightSet GenerateLights(const Scene& scene, const LightGenerationOptions& opt) {
+  LightSet set;
+  const Bounds3& b = scene.bounds();
+  Vec3 center = b.Empty() ? Vec3{0, 0, 0} : b.Center();
+  float radius = std::max(b.Radius(), 1e-3f) * 1.01f;
+
+  // --- Real point/spot and distant lights: one column each -------------------------------
+  for (const PointEmitter& pe : scene.point_emitters()) {
+    VirtualLight v;
+    v.kind = VirtualLightKind::kPoint;
+    v.p = pe.position;
+    v.n = pe.axis;
+    v.power = pe.intensity;
+    v.spot = pe.spot;
+    v.cos_falloff_start = pe.cos_falloff_start;
+    v.cos_falloff_end = pe.cos_falloff_end;
+    set.lights.push_back(v);
+    ++set.stats.point_lights;
+  }
+  for (const DistantEmitter& de : scene.distant_emitters()) {
+    VirtualLight v;
+    v.kind = VirtualLightKind::kDirectional;
+    v.n = de.direction;
+    v.power = de.L;
+    set.lights.push_back(v);
+    ++set.stats.directional_lights;
+  }
+
+  // --- Area and infinite lights: the direct budget, split ∝ emitted power ------------------
+  std::vector<EmitterRef> emitters = CollectEmitters(scene, radius);
+  bool indirect = opt.max_depth > 1;
+  size_t direct_budget = indirect ? size_t(std::llround(double(opt.target_lights) * double(opt.direct_fraction)))
+                                  : opt.target_lights;
+  double sampled_power = 0;
+  for (const EmitterRef& e : emitters)
+    if (e.kind == EmitterRef::kArea || e.kind == EmitterRef::kInfinite)
+      sampled_power += double(e.power.Luminance());
+  for (const EmitterRef& e : emitters) {
+    if (e.kind != EmitterRef::kArea && e.kind != EmitterRef::kInfinite) continue;
+    size_t n = std::max<size_t>(1, size_t(std::llround(double(direct_budget) * double(e.power.Luminance()) /
+                                                      std::max(sampled_power, 1e-30))));
+    uint32_t scramble0 = uint32_t(HashSeed({opt.seed, uint64_t(RngStream::kEmitterSample), e.index, e.kind, 0}));
+    uint32_t scramble1 = uint32_t(HashSeed({opt.seed, uint64_t(RngStream::kEmitterSample), e.index, e.kind, 1}));
+    for (size_t i = 0; i < n; ++i) {
+      // Scrambled Sobol points: stratified over the emitter for any power-of-two prefix.
+      Vec2 u{Sobol2DComponent(uint32_t(i), 0, scramble0), Sobol2DComponent(uint32_t(i), 1, scramble1)};
+      VirtualLight v;
+      if (e.kind == EmitterRef::kArea) {
+        const AreaEmitter& a = scene.area_emitters()[e.index];
+        scene.SampleAreaEmitter(a, u, &v.p, &v.n);
+        v.ng = v.n;
+        v.kind = VirtualLightKind::kAreaVPL;
+        v.two_sided = a.two_sided;
+        v.power = a.L * (a.area / float(n));
+        ++set.stats.area_vpls;
+      } else {
+        const InfiniteEmitter& ie = scene.infinite_emitters()[e.index];
+        float pdf;
+        Vec3 w = ie.SampleDirection(u, &pdf);
+        if (!(pdf > 0)) continue;
+        v.kind = VirtualLightKind::kDirectional;
+        v.n = -w;
+        v.power = ie.Le(w) / (pdf * float(n));
+        ++set.stats.directional_lights;
+      }
+      set.lights.push_back(v);
+    }
+  }
+
+  // --- Indirect VPLs: particle paths until the budget is met -------------------------------
+  size_t indirect_budget = opt.target_lights > set.lights.size() ? opt.target_lights - set.lights.size() : 0;
+  if (!indirect || indirect_budget == 0 || emitters.empty()) return set;
+  std::vector<float> cdf;
+  double total = 0;
+  for (const EmitterRef& e : emitters) {
+    total += double(std::max(e.power.Luminance(), 0.f));
+    cdf.push_back(float(total));
+  }
+  if (!(total > 0)) return set;
+
+  const size_t batch = 4096;
+  // Give up if paths keep escaping: a scene that never bounces light yields no VPLs.
+  const size_t max_paths = std::max<size_t>(indirect_budget * 64, 1 << 20);
+  std::vector<std::vector<VirtualLight>> per_path(batch);
+  size_t paths = 0, produced = 0;
+  std::vector<VirtualLight> indirect_vpls;
+  while (produced < indirect_budget && paths < max_paths) {
+    tbb::parallel_for(size_t(0), batch, [&](size_t k) {
+      per_path[k].clear();
+      uint64_t index = paths + k;
+      Rng rng(HashSeed({opt.seed, uint64_t(RngStream::kParticlePath), index}));
+      float u = rng.Uniform() * float(total);
+      size_t ei = std::min<size_t>(std::upper_bound(cdf.begin(), cdf.end(), u) - cdf.begin(),
+                                   emitters.size() - 1);
+      float lo = ei == 0 ? 0.f : cdf[ei - 1];
+      float p_select = (cdf[ei] - lo) / float(total);
+      TraceParticlePath(scene, emitters[ei], p_select, center, radius, opt.max_depth, rng,
+                        &per_path[k]);
+    });
+    // Consume whole paths in index order so the result is independent of scheduling.
+    for (size_t k = 0; k < batch && produced < indirect_budget; ++k) {
+      ++paths;
+      for (VirtualLight& v : per_path[k]) {
+        indirect_vpls.push_back(v);
+        ++produced;
+      }
+    }
+  }
+  set.stats.particle_paths = paths;
+  const float inv_paths = 1.f / float(paths);
+  for (VirtualLight& v : indirect_vpls) {
+    v.power *= inv_paths;
+    if (v.caustic) ++set.stats.caustic_vpls;
+    if (MaterialFlags(scene.materials()[v.material]) & kBxDFGlossy) ++set.stats.glossy_vpls;
+    ++set.stats.surface_vpls;
+    set.lights.push_back(v);
+  }
+  return set;
+}
+
+}  // namespace lightfarm

@@ -1,0 +1,207 @@
+#include "common/matrix/lighting_matrix.h"
+
+#include <embree3/rtcore.h>
+
+#include <array>
+#include <cmath>
+
+namespace lightfarm {
+
+namespace {
+
+constexpr size_t kBatch = 256;
+
+// The unshadowed value of one element and the shadow ray that decides it.
+struct Unshadowed {
+  RGB value;
+  float unclamped_scale = 1;  // value · unclamped_scale = the element without the clamp
+  Vec3 origin, dir;           // shadow ray: origin + t·dir, t ∈ (0, tfar)
+  float tfar = 0;
+};
+
+}  // namespace
+
+LightingMatrix::LightingMatrix(const Scene& scene, const ReceiverSet& receivers,
+                               const LightSet& lights, const MatrixOptions& options)
+    : scene_(scene), receivers_(receivers), lights_(lights) {
+  clamp_distance_ = options.clamp * std::max(scene.bounds().Radius(), 1e-6f);
+  clamp_distance2_ = clamp_distance_ * clamp_distance_;
+  const int max_depth = scene.hints().max_depth;
+  rows_.resize(receivers.points.size());
+  for (size_t i = 0; i < rows_.size(); ++i) {
+    const ShadingPoint& sp = receivers.points[i];
+    RowData& r = rows_[i];
+    r.p = sp.p;
+    r.ng = sp.ng;
+    r.frame = Frame(sp.ns);
+    r.wo_local = r.frame.ToLocal(sp.wo);
+    r.throughput = sp.throughput;
+    r.material = sp.material;
+    // pbrt's maxdepth bounds the scattering events on the whole path: camera side (depth) +
+    // light side (VPL depth) must not exceed it.
+    r.light_depth_budget = uint8_t(std::clamp(max_depth - int(sp.depth), 0, 255));
+  }
+}
+
+template <typename EntryFn, typename SinkFn>
+void LightingMatrix::EvaluateBatched(size_t n, EntryFn entry, SinkFn sink,
+                                     MatrixCounters* counters) const {
+  const std::vector<Material>& materials = scene_.materials();
+  alignas(16) std::array<RTCRay, kBatch> rays;
+  std::array<RGB, kBatch> values;
+  std::array<float, kBatch> unclamped;
+  std::array<uint32_t, kBatch> slot;  // which entry of the batch a ray belongs to
+  for (size_t begin = 0; begin < n; begin += kBatch) {
+    size_t count = std::min(kBatch, n - begin);
+    size_t nrays = 0;
+    for (size_t k = 0; k < count; ++k) {
+      uint32_t ri, lj;
+      entry(begin + k, &ri, &lj);
+      const RowData& row = rows_[ri];
+      const VirtualLight& L = lights_.lights[lj];
+      sink(begin + k, RGB(0.f));  // default: zero unless visible below
+      if (L.depth > row.light_depth_budget) continue;
+      // Direction to the light and the light's side of the element.
+      Vec3 w;
+      float dist2 = 0;
+      if (L.IsDirectional()) {
+        w = -L.n;
+      } else {
+        Vec3 d = L.p - row.p;
+        dist2 = LengthSquared(d);
+        if (!(dist2 > 0)) continue;
+        w = d / std::sqrt(dist2);
+      }
+      Vec3 wi_local = row.frame.ToLocal(w);
+      // The geometric and shading normals must agree on the side, or light would leak.
+      if (Dot(row.ng, w) * wi_local.z <= 0) continue;
+      RGB f = EvalBSDF(materials[row.material], row.wo_local, wi_local, TransportMode::kRadiance);
+      if (f.IsBlack()) continue;
+      RGB intensity;
+      switch (L.kind) {
+        case VirtualLightKind::kAreaVPL: {
+          float cos_l = -Dot(L.n, w);
+          if (cos_l <= 0 && !L.two_sided) continue;
+          intensity = L.power * std::abs(cos_l);
+          break;
+        }
+        case VirtualLightKind::kSurfaceVPL: {
+          // Re-emission through the VPL's BSDF: light arrived from wi, leaves towards -w.
+          Frame lf(L.n);
+          Vec3 out_local = lf.ToLocal(-w);
+          if (Dot(L.ng, -w) * out_local.z <= 0) continue;
+          RGB fl = EvalBSDF(materials[L.material], lf.ToLocal(L.wi), out_local,
+                            TransportMode::kImportance);
+          intensity = L.power * fl * std::abs(out_local.z);
+          break;
+        }
+        case VirtualLightKind::kPoint: {
+          float falloff = 1.f;
+          if (L.spot) {
+            float cos_t = -Dot(w, L.n);
+            if (cos_t <= L.cos_falloff_end) continue;
+            if (cos_t < L.cos_falloff_start) {
+              float t = (cos_t - L.cos_falloff_end) / (L.cos_falloff_start - L.cos_falloff_end);
+              falloff = t * t * (3 - 2 * t);
+            }
+          }
+          intensity = L.power * falloff;
+          break;
+        }
+        case VirtualLightKind::kDirectional:
+          intensity = L.power;
+          break;
+      }
+      float geometry = 1.f, scale_unclamped = 1.f;
+      if (!L.IsDirectional()) {
+        if (L.IsClamped() && dist2 < clamp_distance2_) {
+          geometry = 1.f / clamp_distance2_;
+          scale_unclamped = clamp_distance2_ / dist2;
+        } else {
+          geometry = 1.f / dist2;
+        }
+      }
+      RGB value = row.throughput * f * intensity * (std::abs(wi_local.z) * geometry);
+      if (value.IsBlack() || !value.IsFinite()) continue;
+      // Shadow ray between offset end points; dir is left unnormalised with tfar just short of 1.
+      RTCRay& ray = rays[nrays];
+      Vec3 o = OffsetRayOrigin(row.p, row.ng, w);
+      Vec3 dir;
+      float tfar;
+      if (L.IsDirectional()) {
+        dir = w;
+        tfar = kInfinity;
+      } else {
+        Vec3 target = L.kind == VirtualLightKind::kPoint ? L.p : OffsetRayOrigin(L.p, L.ng, -w);
+        dir = target - o;
+        tfar = 1.f - 1e-4f;
+      }
+      if (!IsFinite(o) || !IsFinite(dir)) continue;  // never hand Embree a NaN ray
+      ray.org_x = o.x; ray.org_y = o.y; ray.org_z = o.z;
+      ray.dir_x = dir.x; ray.dir_y = dir.y; ray.dir_z = dir.z;
+      ray.tnear = 0.f;
+      ray.tfar = tfar;
+      ray.time = 0.f;
+      ray.mask = 0xFFFFFFFFu;
+      ray.id = uint32_t(nrays);
+      ray.flags = 0;
+      values[nrays] = value;
+      unclamped[nrays] = scale_unclamped;
+      slot[nrays] = uint32_t(k);
+      ++nrays;
+    }
+    counters->elements += count;
+    if (nrays == 0) continue;
+    scene_.Occluded(rays.data(), nrays);
+    counters->shadow_rays += nrays;
+    for (size_t r = 0; r < nrays; ++r) {
+      if (!(rays[r].tfar >= 0.f)) continue;  // occluded: Embree sets tfar = -inf
+      sink(begin + slot[r], values[r]);
+      if (unclamped[r] != 1.f) {
+        float lum = values[r].Luminance();
+        counters->clamp_lost += double(lum) * double(unclamped[r] - 1.f);
+        counters->clamp_kept += double(lum);
+      }
+    }
+  }
+}
+
+void LightingMatrix::EvaluateEntries(std::span<const uint32_t> rows, std::span<const uint32_t> cols,
+                                     std::span<RGB> out, MatrixCounters* counters) const {
+  EvaluateBatched(
+      rows.size(),
+      [&](size_t k, uint32_t* r, uint32_t* c) { *r = rows[k]; *c = cols[k]; },
+      [&](size_t k, RGB v) { out[k] = v; }, counters);
+}
+
+RGB LightingMatrix::Element(uint32_t row, uint32_t col, MatrixCounters* counters) const {
+  RGB out;
+  EvaluateEntries(std::span<const uint32_t>(&row, 1), std::span<const uint32_t>(&col, 1),
+                  std::span<RGB>(&out, 1), counters);
+  return out;
+}
+
+void LightingMatrix::Row(uint32_t row, std::span<RGB> out, MatrixCounters* counters) const {
+  EvaluateBatched(
+      cols(), [&](size_t k, uint32_t* r, uint32_t* c) { *r = row; *c = uint32_t(k); },
+      [&](size_t k, RGB v) { out[k] = v; }, counters);
+}
+
+RGBAccum LightingMatrix::RowSum(uint32_t row, MatrixCounters* counters) const {
+  RGBAccum sum;
+  // Values arrive per batch in light order (zeros first, then visible ones), so the double sum
+  // is independent of threading.
+  EvaluateBatched(
+      cols(), [&](size_t k, uint32_t* r, uint32_t* c) { *r = row; *c = uint32_t(k); },
+      [&](size_t, RGB v) { sum.Add(v); }, counters);
+  return sum;
+}
+
+void LightingMatrix::Column(uint32_t col, std::span<const uint32_t> rows, std::span<RGB> out,
+                            MatrixCounters* counters) const {
+  EvaluateBatched(
+      rows.size(), [&](size_t k, uint32_t* r, uint32_t* c) { *r = rows[k]; *c = col; },
+      [&](size_t k, RGB v) { out[k] = v; }, counters);
+}
+
+}  // namespace lightfarm

@@ -1,0 +1,81 @@
+// The lighting matrix A (receivers × lights): A_ij is the radiance light j sends through
+// receiver i's camera path (Hašan 2007, Sec. 3.1). Methods never see geometry directly; they ask
+// for elements, rows, columns or arbitrary entry lists and pay for shadow rays, which this class
+// batches for Embree (rtcOccluded1M, incoherent) and counts.
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "common/lights/virtual_light.h"
+#include "common/receivers/receivers.h"
+#include "common/scene/scene.h"
+
+namespace lightfarm {
+
+struct MatrixOptions {
+  // Geometry-term clamp for virtual lights: 1/d² is replaced by 1/max(d², d_min²) with
+  // d_min = clamp · (scene bounding-sphere radius). 0 disables it. Real point lights are exact.
+  float clamp = 0.01f;
+};
+
+// Per-caller counters (no atomics in the hot path; callers sum them).
+struct MatrixCounters {
+  uint64_t elements = 0;     // matrix elements evaluated
+  uint64_t shadow_rays = 0;  // occlusion rays cast (elements with a non-zero unshadowed value)
+  double clamp_lost = 0;     // luminance removed by the clamp on visible elements
+  double clamp_kept = 0;     // luminance of visible clamped-light elements after the clamp
+  void Add(const MatrixCounters& o) {
+    elements += o.elements;
+    shadow_rays += o.shadow_rays;
+    clamp_lost += o.clamp_lost;
+    clamp_kept += o.clamp_kept;
+  }
+};
+
+class LightingMatrix {
+ public:
+  LightingMatrix(const Scene& scene, const ReceiverSet& receivers, const LightSet& lights,
+                 const MatrixOptions& options);
+
+  size_t rows() const { return rows_.size(); }
+  size_t cols() const { return lights_.size(); }
+  const LightSet& lights() const { return lights_; }
+  const ReceiverSet& receivers() const { return receivers_; }
+  float clamp_distance() const { return clamp_distance_; }
+
+  // out[k] = A(rows[k], cols[k]) for an arbitrary list of entries.
+  void EvaluateEntries(std::span<const uint32_t> rows, std::span<const uint32_t> cols,
+                       std::span<RGB> out, MatrixCounters* counters) const;
+  RGB Element(uint32_t row, uint32_t col, MatrixCounters* counters) const;
+  // A full row (one receiver against all lights); out.size() == cols().
+  void Row(uint32_t row, std::span<RGB> out, MatrixCounters* counters) const;
+  // Σ_j A(row, j) over all lights, accumulated in double (brute force).
+  RGBAccum RowSum(uint32_t row, MatrixCounters* counters) const;
+  // A column restricted to a row set: out[k] = A(rows[k], col).
+  void Column(uint32_t col, std::span<const uint32_t> rows, std::span<RGB> out,
+              MatrixCounters* counters) const;
+
+ private:
+  // Receiver data in the form element evaluation wants it.
+  struct RowData {
+    Vec3 p, ng;
+    Frame frame;
+    Vec3 wo_local;
+    RGB throughput;
+    uint32_t material;
+    uint8_t light_depth_budget;  // max light-path depth this receiver may connect to
+  };
+  // Evaluates up to kBatch entries (unshadowed value + shadow ray), then visibility.
+  template <typename EntryFn, typename SinkFn>
+  void EvaluateBatched(size_t n, EntryFn entry, SinkFn sink, MatrixCounters* counters) const;
+
+  const Scene& scene_;
+  const ReceiverSet& receivers_;
+  const LightSet& lights_;
+  std::vector<RowData> rows_;
+  float clamp_distance_ = 0, clamp_distance2_ = 0;
+};
+
+}  // namespace lightfarm

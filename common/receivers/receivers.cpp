@@ -1,0 +1,140 @@
+#include "common/receivers/receivers.h"
+
+#include <tbb/parallel_for.h>
+
+#include "common/util/rng.h"
+#include "common/util/sampling.h"
+
+namespace lightfarm {
+
+namespace {
+
+// A material whose every lobe is black reflects nothing: its row would be all zeros.
+bool ReflectsNothing(const Material& m) {
+  return m.type == MaterialType::kDiffuse && m.reflectance.IsBlack();
+}
+
+struct PathEnd {
+  RGB emitted;
+  bool has_point = false;
+  ShadingPoint point;
+  int specular_bounces = 0;
+  bool escaped = false;
+};
+
+// Follows a camera ray through specular (delta) interactions to its first non-specular vertex,
+// collecting the emission seen along the way.
+PathEnd TraceCameraPath(const Scene& scene, Ray ray, int max_depth, Rng& rng) {
+  PathEnd end;
+  RGB beta(1.f);
+  int depth = 0, passthrough = 0;
+  for (;;) {
+    SurfaceHit hit;
+    if (!scene.Intersect(ray, &hit)) {
+      end.emitted += beta * scene.EnvironmentRadiance(ray.d);
+      end.escaped = true;
+      return end;
+    }
+    Vec3 wo = -ray.d;
+    end.emitted += beta * scene.EmittedRadiance(hit, wo);
+    const Shape& shape = scene.shapes()[hit.shape];
+    const Material& m = scene.materials()[shape.material];
+    uint32_t flags = MaterialFlags(m);
+    if (flags == 0) {  // interface: not a surface
+      if (++passthrough > 64) return end;
+      ray.o = OffsetRayOrigin(hit.p, hit.ng, ray.d);
+      continue;
+    }
+    if (++depth > max_depth) return end;
+    if (!IsPurelySpecular(flags)) {
+      if (ReflectsNothing(m)) return end;
+      end.has_point = true;
+      end.point.p = hit.p;
+      end.point.ng = hit.ng;
+      end.point.ns = hit.ns;
+      end.point.wo = wo;
+      end.point.throughput = beta;
+      end.point.material = uint32_t(shape.material);
+      end.point.depth = uint8_t(std::min(depth, 255));
+      return end;
+    }
+    if (depth >= max_depth) return end;
+    // Purely specular: continue along the sampled delta lobe (radiance transport).
+    Frame frame(hit.ns);
+    auto bs = SampleBSDF(m, frame.ToLocal(wo), rng.Uniform(), {rng.Uniform(), rng.Uniform()},
+                         TransportMode::kRadiance);
+    if (!bs || !(bs->pdf > 0)) return end;
+    Vec3 wi = frame.FromLocal(bs->wi);
+    beta *= bs->f * (std::abs(bs->wi.z) / bs->pdf);
+    if (beta.IsBlack() || !beta.IsFinite()) return end;
+    ++end.specular_bounces;
+    ray = {OffsetRayOrigin(hit.p, hit.ng, wi), wi, kInfinity};
+  }
+}
+
+}  // namespace
+
+ReceiverSet GenerateReceivers(const Scene& scene, const FilterSampler& filter,
+                              const ReceiverOptions& opt) {
+  ReceiverSet set;
+  set.width = scene.hints().width;
+  set.height = scene.hints().height;
+  set.spp = std::max(1, opt.spp);
+  const size_t npix = size_t(set.width) * set.height;
+  const int spp = set.spp;
+  set.samples.resize(npix * spp);
+  std::vector<ShadingPoint> points(npix * spp);
+  std::vector<uint8_t> has_point(npix * spp, 0);
+  std::vector<ReceiverStats> row_stats(set.height);
+
+  tbb::parallel_for(0, set.height, [&](int y) {
+    ReceiverStats& st = row_stats[y];
+    for (int x = 0; x < set.width; ++x) {
+      uint32_t pixel = uint32_t(y * set.width + x);
+      uint64_t pixel_seed = HashSeed({opt.seed, uint64_t(RngStream::kCameraSample), pixel});
+      Rng rng(pixel_seed);
+      uint32_t scramble0 = rng.Next(), scramble1 = rng.Next();
+      for (int s = 0; s < spp; ++s) {
+        size_t index = size_t(pixel) * spp + s;
+        // Film position: scrambled Sobol point warped by the filter (importance sampling).
+        Vec2 u{Sobol2DComponent(uint32_t(s), 0, scramble0), Sobol2DComponent(uint32_t(s), 1, scramble1)};
+        FilterSample fs = filter.Sample(u);
+        Vec2 p_film{float(x) + 0.5f + fs.p.x, float(y) + 0.5f + fs.p.y};
+        Ray ray = scene.camera().GenerateRay(p_film, {rng.Uniform(), rng.Uniform()});
+        CameraSample& cs = set.samples[index];
+        cs.pixel = pixel;
+        cs.weight = fs.weight;
+        ++st.camera_rays;
+        if (!IsFinite(ray.o) || !IsFinite(ray.d)) {
+          ++st.nonfinite_rays;
+          continue;
+        }
+        PathEnd end = TraceCameraPath(scene, ray, opt.max_depth, rng);
+        cs.emitted = end.emitted;
+        st.specular_bounces += end.specular_bounces;
+        st.escaped += end.escaped;
+        if (end.has_point) {
+          end.point.sample = uint32_t(index);
+          points[index] = end.point;
+          has_point[index] = 1;
+        }
+      }
+    }
+  });
+
+  // Compact the shading points in sample order (deterministic).
+  for (size_t i = 0; i < points.size(); ++i) {
+    if (!has_point[i]) continue;
+    set.samples[i].point = int32_t(set.points.size());
+    set.points.push_back(points[i]);
+  }
+  for (const ReceiverStats& st : row_stats) {
+    set.stats.camera_rays += st.camera_rays;
+    set.stats.specular_bounces += st.specular_bounces;
+    set.stats.escaped += st.escaped;
+    set.stats.nonfinite_rays += st.nonfinite_rays;
+  }
+  return set;
+}
+
+}  // namespace lightfarm

@@ -1,0 +1,52 @@
+// The rows of the lighting matrix: camera paths traced to their first non-specular vertex.
+// Each camera sample belongs to exactly one pixel with a filter weight (filter importance
+// sampling, as pbrt-v4), so any subset of samples can be shaded anywhere and assembled later.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "common/image/filter.h"
+#include "common/scene/scene.h"
+
+namespace lightfarm {
+
+// A receiver on a surface: the camera-side end of every matrix element in its row.
+struct ShadingPoint {
+  Vec3 p, ng, ns;
+  Vec3 wo;          // unit, towards the previous camera-path vertex
+  RGB throughput;   // camera-path weight up to here (specular chain), excludes the filter weight
+  uint32_t material = 0;
+  uint32_t sample = 0;  // index of the camera sample it belongs to
+  uint8_t depth = 1;    // scattering events on the camera path, this vertex included
+};
+
+struct CameraSample {
+  uint32_t pixel = 0;     // y * width + x
+  float weight = 0;       // filter weight f(p)/pdf(p)
+  RGB emitted;            // emission seen directly along the camera path (emitters, environment)
+  int32_t point = -1;     // index of its shading point, -1 if the path ended without one
+};
+
+struct ReceiverStats {
+  size_t camera_rays = 0, specular_bounces = 0, escaped = 0, nonfinite_rays = 0;
+};
+
+struct ReceiverSet {
+  int width = 0, height = 0, spp = 1;
+  std::vector<CameraSample> samples;  // pixel-major: sample s of pixel p is p * spp + s
+  std::vector<ShadingPoint> points;   // in sample order
+  ReceiverStats stats;
+};
+
+struct ReceiverOptions {
+  int spp = 1;
+  uint64_t seed = 0;
+  int max_depth = 5;
+};
+
+// Deterministic: every pixel draws from its own hashed generator and scrambled Sobol points.
+ReceiverSet GenerateReceivers(const Scene& scene, const FilterSampler& filter,
+                              const ReceiverOptions& opt);
+
+}  // namespace lightfarm

@@ -1,0 +1,87 @@
+// Materials and their BSDFs, evaluated in the local shading frame (z = shading normal), with
+// pbrt-v4's conventions: f(wo, wi) excludes the cosine; wo points away from the surface towards
+// the viewer (or the previous path vertex), wi towards the light (or the next vertex).
+//
+// A Material is a plain value (no virtual dispatch): the lighting matrix evaluates billions of
+// f(wo, wi) and a switch on a small tag keeps that cheap and easy to serialise for the farm.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <string>
+
+#include "common/scene/scene_description.h"
+#include "common/util/math.h"
+
+namespace lightfarm {
+
+enum BxDFFlags : uint32_t {
+  kBxDFUnset = 0,
+  kBxDFReflection = 1 << 0,
+  kBxDFTransmission = 1 << 1,
+  kBxDFDiffuse = 1 << 2,
+  kBxDFGlossy = 1 << 3,
+  kBxDFSpecular = 1 << 4,
+};
+
+// Radiance: camera paths (adjoint of importance); Importance: particle tracing from lights.
+// They differ for refraction (the 1/eta^2 radiance scaling) and shading normals.
+enum class TransportMode { kRadiance, kImportance };
+
+enum class MaterialType : uint8_t {
+  kDiffuse,
+  kCoatedDiffuse,
+  kConductor,
+  kDielectric,
+  kThinDielectric,
+  kDiffuseTransmission,
+  kInterface,  // no surface: rays pass through (media boundaries)
+};
+
+struct Material {
+  MaterialType type = MaterialType::kDiffuse;
+  RGB reflectance{0.5f};    // diffuse, coateddiffuse, diffusetransmission (already * scale)
+  RGB transmittance{0.f};   // diffusetransmission (already * scale)
+  RGB eta{1.5f};            // dielectric: eta.r used (no dispersion); conductor: complex IOR real part
+  RGB k{0.f};               // conductor: imaginary part
+  bool conductor_uses_reflectance = false;  // conductor given "reflectance" instead of eta/k
+  float alpha_x = 0, alpha_y = 0;           // Trowbridge-Reitz roughness (after remapping)
+  float thickness = 0.01f;  // coateddiffuse layer thickness (attenuation of the diffuse base)
+  RGB coat_albedo{0.f};     // coateddiffuse medium albedo (only 0 supported exactly; see .cpp)
+  std::string name;         // for messages
+};
+
+// Creates a Material from its scene description; reads and checks every parameter and calls
+// ReportUnused, so unknown or unsupported parameters are SceneErrors with file:line.
+Material CreateMaterial(const MaterialDesc& desc);
+
+// The lobes a material has (union of BxDFFlags).
+uint32_t MaterialFlags(const Material& m);
+// True if the material has no non-delta lobe (camera paths continue through it).
+inline bool IsPurelySpecular(uint32_t flags) {
+  return (flags & (kBxDFDiffuse | kBxDFGlossy)) == 0;
+}
+
+// f(wo, wi); zero for delta lobes.
+RGB EvalBSDF(const Material& m, Vec3 wo, Vec3 wi, TransportMode mode);
+// Solid-angle pdf of SampleBSDF producing wi (non-delta lobes only).
+float PdfBSDF(const Material& m, Vec3 wo, Vec3 wi, TransportMode mode);
+
+struct BSDFSample {
+  RGB f;          // BSDF value (for delta lobes: the delta's weight, so f*|cos|/pdf is the throughput)
+  Vec3 wi;
+  float pdf = 0;  // solid-angle pdf, or the discrete probability of a delta lobe
+  uint32_t flags = 0;  // the sampled lobe
+  float eta = 1;       // relative IOR for transmission (for Russian roulette scaling)
+  bool IsSpecular() const { return (flags & kBxDFSpecular) != 0; }
+};
+// Samples wi given wo. uc picks the lobe, u the direction. nullopt when sampling fails.
+std::optional<BSDFSample> SampleBSDF(const Material& m, Vec3 wo, float uc, Vec2 u,
+                                     TransportMode mode);
+
+// Trowbridge-Reitz alpha from pbrt's "roughness" (remaproughness true): alpha = sqrt(r).
+float RoughnessToAlpha(float roughness);
+// Microfacet lobes with alpha below this are treated as perfectly specular (pbrt-v4's value).
+inline constexpr float kEffectivelySmoothAlpha = 1e-3f;
+
+}  // namespace lightfarm

@@ -1,0 +1,32 @@
+#!/usr/bin/env bash
+# Installs every Debian package lightfarm needs to build, test and benchmark.
+# Idempotent: packages already present are skipped, so a second run costs a dpkg query.
+set -euo pipefail
+
+packages=(
+  # toolchain
+  build-essential cmake ninja-build pkg-config git clang libclang-rt-14-dev
+  # renderer core
+  libembree-dev libopenimageio-dev openimageio-tools libtbb-dev libspdlog-dev libfmt-dev
+  libeigen3-dev libcli11-dev nlohmann-json3-dev libmetis-dev libnanovdb-dev libopenvdb-dev
+  # farm
+  libgrpc++-dev libgrpc-dev protobuf-compiler protobuf-compiler-grpc libprotobuf-dev
+  libsqlite3-dev libssl-dev libcpp-httplib-dev
+  # tests, benchmarks, reports
+  libgtest-dev libgmock-dev libbenchmark-dev gnuplot-nox
+)
+
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -eq 0 ]; then
+  exit 0
+fi
+
+echo "install-deps: installing ${missing[*]}" >&2
+sudo_cmd=()
+[ "$(id -u)" -eq 0 ] || sudo_cmd=(sudo)
+export DEBIAN_FRONTEND=noninteractive
+"${sudo_cmd[@]}" apt-get update -qq
+"${sudo_cmd[@]}" apt-get install -y -qq --no-install-recommends "${missing[@]}"

@@ -1,0 +1,200 @@
+// Whole-pipeline tests against closed-form answers: a scene file in, an image out.
+#include <gtest/gtest.h>
+#include <tbb/global_control.h>
+
+#include <cmath>
+#include <string>
+
+#include "common/farm/render_job.h"
+#include "tests/common/test_util.h"
+
+namespace lightfarm {
+namespace {
+
+using testing::TempDir;
+
+// Orthographic camera looking down -z at the square [-1,1]² of the plane z = 0.
+std::string PlaneScene(const std::string& lights, int res, int maxdepth = 1) {
+  return "Film \"rgb\" \"integer xresolution\" [" + std::to_string(res) +
+         "] \"integer yresolution\" [" + std::to_string(res) +
+         "]\nPixelFilter \"box\"\nIntegrator \"path\" \"integer maxdepth\" [" +
+         std::to_string(maxdepth) +
+         "]\nLookAt 0 0 5  0 0 0  0 1 0\nCamera \"orthographic\" \"float screenwindow\" [-1 1 -1 1]\n"
+         "WorldBegin\n" +
+         lights +
+         "Material \"diffuse\" \"rgb reflectance\" [0.5 0.5 0.5]\n"
+         "Shape \"trianglemesh\" \"point3 P\" [-4 -4 0  4 -4 0  4 4 0  -4 4 0]\n"
+         "  \"integer indices\" [0 1 2 0 2 3]\n";
+}
+
+RenderOutput Render(const TempDir& dir, const std::string& text, RenderSettings s) {
+  return RenderScene(dir.Write("scene.pbrt", text), s);
+}
+
+// L = ρ/π · I · cos θ / d² for a Lambertian plane under a point light at height h on the axis.
+TEST(AnalyticRender, LambertianPlaneUnderPointLight) {
+  TempDir dir;
+  const int res = 32;
+  const float h = 1.f;
+  RenderSettings s;
+  s.spp = 256;
+  s.lights = 1;
+  RenderOutput out = Render(
+      dir, PlaneScene("LightSource \"point\" \"rgb I\" [3.14159265 3.14159265 3.14159265]"
+                      " \"point3 from\" [0 0 1]\n", res),
+      s);
+  ASSERT_EQ(out.image.width, res);
+  double max_rel = 0;
+  for (int py = 0; py < res; ++py)
+    for (int px = 0; px < res; ++px) {
+      // The box-filtered pixel is the mean of L over its area (integrated here on a 16² grid).
+      // The setup is symmetric about the axis, so the image orientation does not matter.
+      double expected = 0;
+      for (int sy = 0; sy < 16; ++sy)
+        for (int sx = 0; sx < 16; ++sx) {
+          double x = -1 + (px + (sx + 0.5) / 16) * 2.0 / res;
+          double y = -1 + (py + (sy + 0.5) / 16) * 2.0 / res;
+          double d2 = x * x + y * y + double(h) * double(h);
+          expected += 0.5 / M_PI * M_PI * (double(h) / std::sqrt(d2)) / d2 / 256;
+        }
+      RGB v = out.image.at(px, py);
+      max_rel = std::max(max_rel, std::abs(double(v.g) - expected) / expected);
+      EXPECT_FLOAT_EQ(v.r, v.g);
+    }
+  // 256 stratified samples estimate that mean; L varies by up to ~8% across a pixel, and the
+  // (0,2)-sequence's error for such a smooth integrand is well below 0.1%.
+  EXPECT_LT(max_rel, 1e-3);
+  EXPECT_EQ(out.stats["lights"]["point"], 1);
+  EXPECT_EQ(out.stats["lights"]["vpl"], 0);  // maxdepth 1: no indirect VPLs
+}
+
+// Splitting a light into four of a quarter the power leaves the image unchanged.
+TEST(AnalyticRender, SplittingALightIntoFourQuartersGivesTheSameImage) {
+  TempDir dir;
+  RenderSettings s;
+  s.spp = 4;
+  s.lights = 4;
+  std::string one = "LightSource \"point\" \"rgb I\" [2 1 0.5] \"point3 from\" [0.3 -0.2 0.8]\n";
+  std::string four;
+  for (int i = 0; i < 4; ++i)
+    four += "LightSource \"point\" \"rgb I\" [0.5 0.25 0.125] \"point3 from\" [0.3 -0.2 0.8]\n";
+  Image a = Render(dir, PlaneScene(one, 24), s).image;
+  Image b = Render(dir, PlaneScene(four, 24), s).image;
+  ASSERT_TRUE(a.SameSize(b));
+  for (size_t i = 0; i < a.pixels.size(); ++i)
+    for (int c = 0; c < 3; ++c)
+      EXPECT_NEAR(a.pixels[i][c], b.pixels[i][c], 1e-6f * std::max(1.f, a.pixels[i][c]));
+}
+
+// Inside a closed sphere that emits Le and reflects with albedo ρ, a path with k scattering
+// events carries Le·ρ^k, so L = Le·Σ_{k≤D} ρ^k → Le/(1−ρ). On a sphere the form factor between
+// any two points is constant (cos θ₁ cos θ₂ / d² = 1/(4R²)), so the VPL estimate has no
+// singularity: the test isolates the light transport, not the clamp.
+std::string FurnaceScene(int maxdepth) {
+  return "Film \"rgb\" \"integer xresolution\" [16] \"integer yresolution\" [16]\n"
+         "PixelFilter \"box\"\nIntegrator \"path\" \"integer maxdepth\" [" +
+         std::to_string(maxdepth) +
+         "]\nLookAt 0 0 0  0 0 1  0 1 0\nCamera \"perspective\" \"float fov\" [60]\n"
+         "WorldBegin\nAttributeBegin\n  ReverseOrientation\n"
+         "  AreaLightSource \"diffuse\" \"rgb L\" [1 1 1]\n"
+         "  Material \"diffuse\" \"rgb reflectance\" [0.5 0.5 0.5]\n"
+         "  Shape \"sphere\" \"float radius\" [1]\nAttributeEnd\n";
+}
+
+double MeanGreen(const Image& img) {
+  double sum = 0;
+  for (const RGB& c : img.pixels) sum += double(c.g);
+  return sum / double(img.pixels.size());
+}
+
+TEST(AnalyticRender, ClosedFurnaceConvergesToLeOverOneMinusAlbedo) {
+  TempDir dir;
+  const double rho = 0.5;
+  double previous_error = 1e9;
+  for (int depth : {1, 2, 4, 12}) {
+    RenderSettings s;
+    s.spp = 1;
+    s.lights = 20000;
+    s.seed = 7;
+    RenderOutput out = Render(dir, FurnaceScene(depth), s);
+    double expected = (1 - std::pow(rho, depth + 1)) / (1 - rho);
+    double mean = MeanGreen(out.image);
+    // Direct light is exact here; indirect VPLs carry Monte Carlo noise of the particle paths.
+    EXPECT_NEAR(mean, expected, 0.01 * expected) << "maxdepth " << depth;
+    double error_to_limit = std::abs(mean - 1 / (1 - rho));
+    EXPECT_LT(error_to_limit, previous_error) << "maxdepth " << depth;
+    previous_error = error_to_limit;
+  }
+  EXPECT_LT(previous_error, 0.01 * 2.0);
+}
+
+// Direct lighting alone is exact for any light count: every VPL on the sphere contributes
+// ρ/π · (Le·A/N) · 1/(4R²).
+TEST(AnalyticRender, FurnaceDirectLightingIsExactForAnyLightCount) {
+  TempDir dir;
+  for (size_t n : {size_t(1), size_t(7), size_t(500)}) {
+    RenderSettings s;
+    s.lights = n;
+    RenderOutput out = Render(dir, FurnaceScene(1), s);
+    for (const RGB& c : out.image.pixels) ASSERT_NEAR(c.g, 1.5f, 1e-3f) << n << " lights";
+  }
+}
+
+TEST(Determinism, SameSeedSameBitsWithOneOrTwoThreads) {
+  RenderSettings s;
+  s.width = 24;
+  s.height = 24;
+  s.spp = 2;
+  s.lights = 3000;
+  s.seed = 42;
+  std::string scene = testing::SharedScene("cornell-box");
+  RenderOutput a, b;
+  {
+    tbb::global_control one(tbb::global_control::max_allowed_parallelism, 1);
+    a = RenderScene(scene, s);
+  }
+  {
+    tbb::global_control two(tbb::global_control::max_allowed_parallelism, 2);
+    b = RenderScene(scene, s);
+  }
+  ASSERT_TRUE(a.image.SameSize(b.image));
+  for (size_t i = 0; i < a.image.pixels.size(); ++i)
+    ASSERT_EQ(a.image.pixels[i], b.image.pixels[i]) << "pixel " << i;
+  EXPECT_EQ(a.stats["rays"]["shadow"], b.stats["rays"]["shadow"]);
+  // A different seed changes the light set, and so the image.
+  s.seed = 43;
+  RenderOutput c = RenderScene(scene, s);
+  size_t differing = 0;
+  for (size_t i = 0; i < a.image.pixels.size(); ++i) differing += !(a.image.pixels[i] == c.image.pixels[i]);
+  EXPECT_GT(differing, a.image.pixels.size() / 2);
+}
+
+TEST(RenderErrors, MediaSceneFailsWithAClearMessage) {
+  RenderSettings s;
+  s.width = s.height = 8;
+  s.lights = 10;
+  try {
+    RenderScene(testing::SharedScene("volumetric-caustic"), s);
+    FAIL() << "expected an error";
+  } catch (const SceneError& e) {
+    EXPECT_NE(std::string(e.what()).find("participating media not supported yet"), std::string::npos)
+        << e.what();
+    EXPECT_NE(std::string(e.what()).find("scene.pbrt:"), std::string::npos) << e.what();
+  }
+}
+
+TEST(RenderErrors, UnknownMethodAndParamAreOptionErrors) {
+  TempDir dir;
+  std::string path = dir.Write("s.pbrt", PlaneScene("LightSource \"point\"\n", 4));
+  RenderSettings s;
+  s.method = "no-such-method";
+  EXPECT_THROW(RenderScene(path, s), OptionError);
+  s.method = "brute";
+  s.params = {"clampp=0.1"};
+  EXPECT_THROW(RenderScene(path, s), OptionError);
+  s.params = {"clamp=-1"};
+  EXPECT_THROW(RenderScene(path, s), OptionError);
+}
+
+}  // namespace
+}  // namespace lightfarm
