@@ -23,6 +23,7 @@ struct RenderArgs {
   std::string out = "out/render.exr";
   std::string stats;
   std::string resolution;
+  std::string filter;
   int spp = 1;
   long long lights = 10000;
   unsigned long long seed = 0;
@@ -59,6 +60,7 @@ void RunRender(const RenderArgs& a) {
   RenderSettings s;
   s.method = a.method;
   if (!a.resolution.empty()) ParseResolution(a.resolution, &s.width, &s.height);
+  s.filter = a.filter;
   s.spp = a.spp;
   s.lights = size_t(a.lights);
   s.seed = a.seed;
@@ -101,6 +103,8 @@ void AddRenderCommand(CLI::App& app) {
   cmd->add_option("--out", args->out, "Output EXR (a tone-mapped PNG is written beside it)");
   cmd->add_option("--stats", args->stats, "Write stats JSON here");
   cmd->add_option("--resolution", args->resolution, "WxH (default: the scene's Film)");
+  cmd->add_option("--filter", args->filter, "Override the scene's pixel filter")
+      ->check(CLI::IsMember({"box", "triangle", "gaussian", "mitchell", "sinc"}));
   cmd->add_option("--spp", args->spp, "Camera samples per pixel")->check(CLI::Range(1, 4096));
   cmd->add_option("--lights", args->lights, "Number of virtual lights")
       ->check(CLI::Range(1LL, 100000000LL));

@@ -67,6 +67,7 @@ RenderOutput RenderScene(const std::string& scene_path, const RenderSettings& se
   SceneBuildOptions build;
   build.width = settings.width;
   build.height = settings.height;
+  build.filter = settings.filter;
   plan.scene = Scene::Build(desc, build);
   const Scene& scene = *plan.scene;
   plan.effects = ComputeEffects(scene);
@@ -137,6 +138,7 @@ RenderOutput RenderScene(const std::string& scene_path, const RenderSettings& se
   s["scene"] = scene_path;
   s["resolution"] = {plan.receivers.width, plan.receivers.height};
   s["spp"] = plan.receivers.spp;
+  s["filter"] = scene.hints().filter_type;
   s["effects"] = plan.effects.Names();
   s["lights"] = {{"vpl", ls.area_vpls + ls.surface_vpls},
                  {"vrl", 0},

@@ -23,6 +23,7 @@ namespace lightfarm {
 struct RenderSettings {
   std::string method = "brute";
   int width = 0, height = 0;  // 0: the scene's Film resolution
+  std::string filter;  // overrides the scene's PixelFilter when set
   int spp = 1;
   size_t lights = 10000;
   uint64_t seed = 0;

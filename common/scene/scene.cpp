@@ -14,10 +14,6 @@ namespace lightfarm {
 
 namespace {
 
-std::string Describe(const TypedEntity& e, const char* directive) {
-  return std::string(directive) + " \"" + e.type + "\" (" + e.loc.ToString() + ")";
-}
-
 void CheckFinite(const std::vector<Vec3>& v, const char* what, const ShapeDesc& sd) {
   for (size_t i = 0; i < v.size(); ++i)
     if (!IsFinite(v[i]))
@@ -235,7 +231,12 @@ class SceneBuilder {
       throw SceneError(desc_.film.loc, "film resolution " + std::to_string(h.width) + "x" +
                                            std::to_string(h.height) + " is out of range");
 
-    const TypedEntity& f = desc_.filter;
+    TypedEntity f = desc_.filter;
+    if (!opt_.filter.empty()) {
+      f.type = opt_.filter;
+      f.params = ParamSet();
+      f.loc = FileLoc{"--filter", 0, 0};
+    }
     h.filter_type = f.type.empty() ? "gaussian" : f.type;
     float default_radius = 0.5f;
     if (h.filter_type == "gaussian") default_radius = 1.5f;
@@ -374,7 +375,7 @@ class SceneBuilder {
         total += 0.5 * double(Length(Cross(p1 - p0, p2 - p0)));
         e.triangle_cdf.push_back(float(total));
       }
-      for (float& c : e.triangle_cdf) c = float(c / total);
+      for (float& c : e.triangle_cdf) c = float(double(c) / total);
       e.area = float(total);
     }
     float power = ps.GetOneFloat("power", -1.f);

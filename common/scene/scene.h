@@ -100,6 +100,9 @@ struct RenderHints {
 
 struct SceneBuildOptions {
   int width = 0, height = 0;  // 0: use the Film's resolution
+  // Overrides the scene's PixelFilter with that filter's defaults (e.g. "box" to compare a
+  // reduced-resolution render with an area-averaged reference). Empty: the scene's filter.
+  std::string filter;
 };
 
 class Scene {

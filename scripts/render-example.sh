@@ -1,0 +1,11 @@
+#!/usr/bin/env bash
+# README command 1: installs and builds as needed, then renders the project's example scene
+# (a Cornell box from its published measurements) to out/cornell-box.{exr,png,json}.
+set -euo pipefail
+root=$(cd "$(dirname "$0")/.." && pwd)
+bash "$root/scripts/build.sh"
+mkdir -p "$root/out"
+"$root/build/lightfarm" render "$root/scenes/cornell-box/scene.pbrt" \
+  --method brute --resolution 256x256 --spp 4 --lights 20000 \
+  --out "$root/out/cornell-box.exr" --stats "$root/out/cornell-box.json" "$@"
+echo "wrote $root/out/cornell-box.exr, .png and .json"
