@@ -46,8 +46,16 @@ PathEnd TraceCameraPath(const Scene& scene, Ray ray, int max_depth, Rng& rng) {
       continue;
     }
     if (++depth > max_depth) return end;
-    if (!IsPurelySpecular(flags)) {
+    Frame frame(hit.ns);
+    Vec3 wo_local = frame.ToLocal(wo);
+    // A material with delta and non-delta lobes (a smooth coat over a diffuse base): follow the
+    // delta lobe with probability p, else become a receiver weighted by 1/(1-p) (unbiased split;
+    // the matrix evaluates only the non-delta lobes).
+    float p_specular = SpecularSamplingProbability(m, wo_local);
+    float uc = rng.Uniform();
+    if (!IsPurelySpecular(flags) && uc >= p_specular) {
       if (ReflectsNothing(m)) return end;
+      beta = beta / (1.f - p_specular);
       end.has_point = true;
       end.point.p = hit.p;
       end.point.ng = hit.ng;
@@ -59,11 +67,10 @@ PathEnd TraceCameraPath(const Scene& scene, Ray ray, int max_depth, Rng& rng) {
       return end;
     }
     if (depth >= max_depth) return end;
-    // Purely specular: continue along the sampled delta lobe (radiance transport).
-    Frame frame(hit.ns);
-    auto bs = SampleBSDF(m, frame.ToLocal(wo), rng.Uniform(), {rng.Uniform(), rng.Uniform()},
-                         TransportMode::kRadiance);
-    if (!bs || !(bs->pdf > 0)) return end;
+    // Continue along a delta lobe (radiance transport); for a mixed material uc < p_specular
+    // makes SampleBSDF choose the delta lobe (bsdf.h contract), and its pdf includes p_specular.
+    auto bs = SampleBSDF(m, wo_local, uc, {rng.Uniform(), rng.Uniform()}, TransportMode::kRadiance);
+    if (!bs || !(bs->pdf > 0) || !bs->IsSpecular()) return end;
     Vec3 wi = frame.FromLocal(bs->wi);
     beta *= bs->f * (std::abs(bs->wi.z) / bs->pdf);
     if (beta.IsBlack() || !beta.IsFinite()) return end;

@@ -703,6 +703,18 @@ float PdfBSDF(const Material& m, Vec3 wo, Vec3 wi, TransportMode /*mode*/) {
   return 0.f;
 }
 
+float SpecularSamplingProbability(const Material& m, Vec3 wo) {
+  uint32_t flags = MaterialFlags(m);
+  if (!(flags & kBxDFSpecular)) return 0.f;
+  if (IsPurelySpecular(flags)) return 1.f;
+  if (m.type == MaterialType::kCoatedDiffuse) {
+    // SampleCoatedDiffuse works on the upper hemisphere (the material is two-sided).
+    Vec3 wo_up = wo.z < 0 ? -wo : wo;
+    return CoatSamplingProbability(m, wo_up);
+  }
+  return 0.f;
+}
+
 std::optional<BSDFSample> SampleBSDF(const Material& m, Vec3 wo, float uc, Vec2 u,
                                      TransportMode mode) {
   std::optional<BSDFSample> s;

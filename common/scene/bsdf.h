@@ -79,6 +79,13 @@ struct BSDFSample {
 std::optional<BSDFSample> SampleBSDF(const Material& m, Vec3 wo, float uc, Vec2 u,
                                      TransportMode mode);
 
+// Probability that SampleBSDF(m, wo, uc, ...) picks a delta lobe. Contract: for a material with
+// both delta and non-delta lobes (a smooth coateddiffuse) SampleBSDF picks the delta lobe exactly
+// when uc < this value, so a caller can split paths between the lobes without bias (camera paths
+// follow the mirror lobe with this probability and become receivers otherwise). 1 for purely
+// specular materials, 0 for materials without a delta lobe.
+float SpecularSamplingProbability(const Material& m, Vec3 wo);
+
 // Trowbridge-Reitz alpha from pbrt's "roughness" (remaproughness true): alpha = sqrt(r).
 float RoughnessToAlpha(float roughness);
 // Microfacet lobes with alpha below this are treated as perfectly specular (pbrt-v4's value).

@@ -788,3 +788,37 @@ TEST(CreateMaterial, RejectsUnsupportedInput) {
 
 }  // namespace
 }  // namespace lightfarm
+
+namespace lightfarm {
+namespace {
+
+// bsdf.h contract used by camera paths: SampleBSDF picks the delta lobe exactly when
+// uc < SpecularSamplingProbability.
+TEST(BsdfContract, SpecularSamplingProbabilitySplitsSmoothCoatedDiffuse) {
+  Material m;
+  m.type = MaterialType::kCoatedDiffuse;
+  m.reflectance = RGB(0.5f);
+  m.eta = RGB(1.5f);
+  for (float z : {0.9f, 0.5f, 0.1f, -0.7f}) {
+    Vec3 wo = Normalize(Vec3(std::sqrt(1 - z * z), 0.1f, z));
+    float p = SpecularSamplingProbability(m, wo);
+    ASSERT_GT(p, 0.f);
+    ASSERT_LT(p, 1.f);
+    for (float uc : {0.f, p * 0.5f, p * 0.999f}) {
+      auto s = SampleBSDF(m, wo, uc, {0.3f, 0.7f}, TransportMode::kRadiance);
+      ASSERT_TRUE(s && s->IsSpecular()) << "uc " << uc << " p " << p;
+    }
+    for (float uc : {p, p + (1 - p) * 0.5f, 0.9999f}) {
+      auto s = SampleBSDF(m, wo, uc, {0.3f, 0.7f}, TransportMode::kRadiance);
+      ASSERT_TRUE(!s || !s->IsSpecular()) << "uc " << uc << " p " << p;
+    }
+  }
+  Material diffuse;
+  EXPECT_EQ(SpecularSamplingProbability(diffuse, {0, 0, 1}), 0.f);
+  Material glass;
+  glass.type = MaterialType::kDielectric;
+  EXPECT_EQ(SpecularSamplingProbability(glass, {0, 0, 1}), 1.f);
+}
+
+}  // namespace
+}  // namespace lightfarm

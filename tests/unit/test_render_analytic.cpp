@@ -140,6 +140,34 @@ TEST(AnalyticRender, FurnaceDirectLightingIsExactForAnyLightCount) {
   }
 }
 
+// A smooth coat over a black base is a dielectric mirror: the camera sees the emitter behind it
+// scaled by the Fresnel reflectance, through the receivers' unbiased split between the coat's
+// delta lobe and the base.
+TEST(AnalyticRender, SmoothCoatMirrorsAnEmitterWithFresnelWeight) {
+  TempDir dir;
+  std::string scene =
+      "Film \"rgb\" \"integer xresolution\" [8] \"integer yresolution\" [8]\n"
+      "PixelFilter \"box\"\nIntegrator \"path\" \"integer maxdepth\" [2]\n"
+      "LookAt 0 1 1  0 0 0  0 1 0\nCamera \"orthographic\" \"float screenwindow\" [-0.05 0.05 -0.05 0.05]\n"
+      "WorldBegin\n"
+      "AttributeBegin\n  AreaLightSource \"diffuse\" \"rgb L\" [1 1 1] \"bool twosided\" true\n"
+      "  Material \"diffuse\" \"rgb reflectance\" [0 0 0]\n"
+      "  Shape \"trianglemesh\" \"point3 P\" [-50 -50 -5  50 -50 -5  50 50 -5  -50 50 -5]\n"
+      "    \"integer indices\" [0 1 2 0 2 3]\nAttributeEnd\n"
+      "Material \"coateddiffuse\" \"rgb reflectance\" [0 0 0] \"float roughness\" [0]\n"
+      "Shape \"trianglemesh\" \"point3 P\" [-1 0 -1  1 0 -1  1 0 1  -1 0 1] \"integer indices\" [0 1 2 0 2 3]\n";
+  RenderSettings s;
+  s.spp = 64;
+  s.lights = 16;
+  RenderOutput out = Render(dir, scene, s);
+  // Fresnel reflectance of a dielectric with eta 1.5 at 45 degrees.
+  const double c = std::sqrt(0.5), eta = 1.5, sin_t = std::sqrt(0.5) / eta;
+  const double cos_t = std::sqrt(1 - sin_t * sin_t);
+  const double rs = (c - eta * cos_t) / (c + eta * cos_t), rp = (eta * c - cos_t) / (eta * c + cos_t);
+  const double fresnel = 0.5 * (rs * rs + rp * rp);
+  EXPECT_NEAR(MeanGreen(out.image), fresnel, 0.01 * fresnel);
+}
+
 TEST(Determinism, SameSeedSameBitsWithOneOrTwoThreads) {
   RenderSettings s;
   s.width = 24;
