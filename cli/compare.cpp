@@ -66,6 +66,7 @@ void RunCompare(const CompareOptions& options) {
     out["rel_l2"] = metrics.rel_l2;
     out["rel_l1"] = metrics.rel_l1;
     out["rmse"] = metrics.rmse;
+    out["excluded_pixels"] = metrics.excluded_pixels;
     out["reference"] = options.reference;
     out["image"] = options.image;
     out["width"] = image.width;
@@ -75,7 +76,10 @@ void RunCompare(const CompareOptions& options) {
     char line[160];
     std::snprintf(line, sizeof line, "rel_l2=%.6g  rel_l1=%.6g  rmse=%.6g", metrics.rel_l2,
                   metrics.rel_l1, metrics.rmse);
-    std::cout << line << std::endl;
+    std::cout << line;
+    if (metrics.excluded_pixels > 0)
+      std::cout << "  excluded=" << metrics.excluded_pixels << " (non-finite reference pixels)";
+    std::cout << std::endl;
   }
 }
 

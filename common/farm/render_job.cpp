@@ -24,7 +24,7 @@ class PhaseTimer {
   explicit PhaseTimer(PhaseTimes* times) : times_(times), start_(Clock::now()) {}
   void End(const std::string& name) {
     auto now = Clock::now();
-    times_->Add(name, Seconds(start_, now));
+    if (times_) times_->Add(name, Seconds(start_, now));
     start_ = now;
   }
 
@@ -44,13 +44,8 @@ std::unique_ptr<Filter> MakeFilter(const RenderHints& h) {
 
 }  // namespace
 
-RenderOutput RenderScene(const std::string& scene_path, const RenderSettings& settings,
-                         const ProgressFn& progress) {
-  const auto t_start = Clock::now();
-  PhaseTimes times;
-  PhaseTimer timer(&times);
-
-  // Options first: a typo in --param or --method fails before any expensive work.
+Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, PhaseTimes* times) {
+  PhaseTimer timer(times);
   OptionMap params = OptionMap::Parse(settings.params);
   Plan plan;
   plan.clamp = params.GetDouble("clamp", 0.01, 0.0, 1.0);
@@ -92,6 +87,7 @@ RenderOutput RenderScene(const std::string& scene_path, const RenderSettings& se
 
   plan.matrix = std::make_unique<LightingMatrix>(scene, plan.receivers, plan.lights,
                                                  plan.matrix_options);
+  // Row tiles: consecutive receivers, i.e. bands of the image (pixel-major sample order).
   const size_t nrows = plan.matrix->rows();
   for (size_t begin = 0; begin < nrows; begin += tile_rows) {
     SubMatrixTask task;
@@ -102,23 +98,47 @@ RenderOutput RenderScene(const std::string& scene_path, const RenderSettings& se
     plan.tasks.push_back(std::move(task));
   }
   timer.End("plan");
+  return plan;
+}
 
-  // Gather: each task's row sums land in a per-row array (order-independent assembly).
-  std::vector<RGBAccum> row_sums(nrows);
-  MatrixCounters counters;
-  std::map<std::string, double> method_stats;
-  for (size_t t = 0; t < plan.tasks.size(); ++t) {
-    const SubMatrixTask& task = plan.tasks[t];
-    GatherResult r = plan.method->Run(*plan.matrix, task);
-    if (r.row_sums.size() != task.rows.size())
-      throw std::logic_error("gather method returned a wrong number of rows");
-    for (size_t i = 0; i < task.rows.size(); ++i) row_sums[task.rows[i]] = r.row_sums[i];
-    counters.Add(r.counters);
-    for (const auto& [k, v] : r.stats) method_stats[k] += v;
-    if (progress) progress("gather", t + 1, plan.tasks.size());
+GatherOutcome RunStagesLocally(const Plan& plan, const ProgressFn& progress, PhaseTimes* times) {
+  PhaseTimer timer(times);
+  const GatherMethod& method = *plan.method;
+  const LightingMatrix& matrix = *plan.matrix;
+  GatherOutcome outcome;
+  outcome.row_sums.resize(matrix.rows());
+  std::vector<uint8_t> covered(matrix.rows(), 0);
+  StageArtifact artifact;
+  const int stages = method.stage_count();
+  for (int stage = 0; stage < stages; ++stage) {
+    std::vector<SubMatrixTask> tasks = method.PlanStage(stage, matrix, plan.tasks, artifact);
+    std::vector<TaskOutput> outputs(tasks.size());
+    for (size_t t = 0; t < tasks.size(); ++t) {
+      outputs[t] = method.RunTask(matrix, tasks[t], artifact);
+      outcome.counters.Add(outputs[t].counters);
+      for (const auto& [k, v] : outputs[t].stats) outcome.method_stats[k] += v;
+      if (progress) progress(method.stage_name(stage), t + 1, tasks.size());
+    }
+    outcome.tasks += tasks.size();
+    if (stage + 1 < stages) {
+      artifact = method.Combine(stage, matrix, outputs);
+    } else {
+      for (size_t t = 0; t < tasks.size(); ++t) {
+        const SubMatrixTask& task = tasks[t];
+        if (outputs[t].row_sums.size() != task.rows.size())
+          throw std::logic_error(method.name() + ": task returned a wrong number of rows");
+        for (size_t i = 0; i < task.rows.size(); ++i) {
+          if (covered[task.rows[i]]++) throw std::logic_error(method.name() + ": row gathered twice");
+          outcome.row_sums[task.rows[i]] = outputs[t].row_sums[i];
+        }
+      }
+    }
+    timer.End(method.stage_name(stage));
   }
-  timer.End("gather");
+  return outcome;
+}
 
+Image AssembleImage(const Plan& plan, const std::vector<RGBAccum>& row_sums, uint64_t* nan_samples) {
   Film film(plan.receivers.width, plan.receivers.height);
   for (const CameraSample& cs : plan.receivers.samples) {
     RGBAccum L;
@@ -126,19 +146,21 @@ RenderOutput RenderScene(const std::string& scene_path, const RenderSettings& se
     if (cs.point >= 0) L.Add(row_sums[cs.point]);
     film.AddSample(int(cs.pixel), L.ToRGB(), cs.weight);
   }
-  RenderOutput out;
-  out.image = film.Resolve();
-  timer.End("film");
+  if (nan_samples) *nan_samples = film.nan_samples();
+  return film.Resolve();
+}
 
-  // --- Stats (keys are a contract: DESIGN.md) ------------------------------------------------
+nlohmann::json MakeStats(const Plan& plan, const RenderSettings& settings,
+                         const GatherOutcome& outcome, uint64_t nan_samples,
+                         const PhaseTimes& times, double total_seconds) {
   const LightSetStats& ls = plan.lights.stats;
-  nlohmann::json& s = out.stats;
+  const MatrixCounters& counters = outcome.counters;
+  nlohmann::json s;
   s["method"] = plan.method->name();
   s["seed"] = settings.seed;
-  s["scene"] = scene_path;
   s["resolution"] = {plan.receivers.width, plan.receivers.height};
   s["spp"] = plan.receivers.spp;
-  s["filter"] = scene.hints().filter_type;
+  s["filter"] = plan.scene->hints().filter_type;
   s["effects"] = plan.effects.Names();
   s["lights"] = {{"vpl", ls.area_vpls + ls.surface_vpls},
                  {"vrl", 0},
@@ -157,6 +179,8 @@ RenderOutput RenderScene(const std::string& scene_path, const RenderSettings& se
                     {"specular_bounces", plan.receivers.stats.specular_bounces},
                     {"escaped", plan.receivers.stats.escaped}};
   s["slices"] = plan.tasks.size();
+  s["tasks"] = outcome.tasks;
+  const size_t nrows = plan.matrix->rows();
   const double full = double(nrows) * double(plan.lights.size());
   s["matrix"] = {{"rows", nrows},
                  {"cols", plan.lights.size()},
@@ -166,25 +190,36 @@ RenderOutput RenderScene(const std::string& scene_path, const RenderSettings& se
   s["rays"] = {{"shadow", counters.shadow_rays},
                {"camera", plan.receivers.stats.camera_rays},
                {"shadow_per_pixel", double(counters.shadow_rays) / pixels}};
-  const double clamp_total = counters.clamp_kept + counters.clamp_lost;
-  nlohmann::json luminance_sum = 0.0;
+  // Share of the (unclamped) light reaching receivers that the clamp removed.
+  double total_lum = 0;
+  for (const RGBAccum& r : outcome.row_sums) total_lum += 0.2126 * r.r + 0.7152 * r.g + 0.0722 * r.b;
+  const double denom = total_lum + counters.clamp_lost;
   s["clamp"] = {{"relative", plan.clamp},
                 {"distance", plan.matrix->clamp_distance()},
-                {"clamped_energy_lost", counters.clamp_lost},
-                {"energy_lost_fraction", 0.0}};
-  // Fraction of the (unclamped) light reaching receivers that the clamp removed.
-  double total_lum = 0;
-  for (const RGBAccum& r : row_sums) total_lum += 0.2126 * r.r + 0.7152 * r.g + 0.0722 * r.b;
-  if (total_lum + counters.clamp_lost > 0)
-    s["clamp"]["energy_lost_fraction"] = counters.clamp_lost / (total_lum + counters.clamp_lost);
-  (void)clamp_total;
-  (void)luminance_sum;
-  s["film"] = {{"nan_samples", film.nan_samples()}};
-  for (const auto& [k, v] : method_stats) s["method_stats"][k] = v;
-  s["time"]["total_s"] = Seconds(t_start, Clock::now());
+                {"energy_lost_fraction", denom > 0 ? counters.clamp_lost / denom : 0.0}};
+  s["film"] = {{"nan_samples", nan_samples}};
+  s["method_stats"] = nlohmann::json::object();
+  for (const auto& [k, v] : outcome.method_stats) s["method_stats"][k] = v;
+  s["time"]["total_s"] = total_seconds;
   nlohmann::json phases = nlohmann::json::object();
   for (const auto& [name, secs] : times.phases) phases[name] = secs;
   s["time"]["phases"] = phases;
+  return s;
+}
+
+RenderOutput RenderScene(const std::string& scene_path, const RenderSettings& settings,
+                         const ProgressFn& progress) {
+  const auto t_start = Clock::now();
+  PhaseTimes times;
+  Plan plan = BuildPlan(scene_path, settings, &times);
+  GatherOutcome outcome = RunStagesLocally(plan, progress, &times);
+  PhaseTimer timer(&times);
+  RenderOutput out;
+  uint64_t nan_samples = 0;
+  out.image = AssembleImage(plan, outcome.row_sums, &nan_samples);
+  timer.End("film");
+  out.stats = MakeStats(plan, settings, outcome, nan_samples, times, Seconds(t_start, Clock::now()));
+  out.stats["scene"] = scene_path;
   return out;
 }
 

@@ -48,12 +48,36 @@ struct PhaseTimes {
   void Add(const std::string& name, double seconds) { phases.emplace_back(name, seconds); }
 };
 
+// Parses and builds the scene and creates everything the gather needs. Validates settings and
+// --param first, so a typo fails before any expensive work.
+Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, PhaseTimes* times);
+
+// The result of running all of a method's stages.
+struct GatherOutcome {
+  std::vector<RGBAccum> row_sums;  // one per matrix row
+  MatrixCounters counters;
+  std::map<std::string, double> method_stats;
+  size_t tasks = 0;
+};
+
+using ProgressFn = std::function<void(const std::string& phase, size_t done, size_t total)>;
+
+// Runs every stage of the plan's method in this process (tasks in id order; each task is
+// parallel inside), combining between stages as the coordinator would.
+GatherOutcome RunStagesLocally(const Plan& plan, const ProgressFn& progress, PhaseTimes* times);
+
+// Film from row sums: each camera sample adds its emission and its receiver's row sum.
+Image AssembleImage(const Plan& plan, const std::vector<RGBAccum>& row_sums, uint64_t* nan_samples);
+
+// The stats JSON (keys are a contract: DESIGN.md).
+nlohmann::json MakeStats(const Plan& plan, const RenderSettings& settings,
+                         const GatherOutcome& outcome, uint64_t nan_samples,
+                         const PhaseTimes& times, double total_seconds);
+
 struct RenderOutput {
   Image image;
   nlohmann::json stats;
 };
-
-using ProgressFn = std::function<void(const std::string& phase, size_t done, size_t total)>;
 
 // Parses, builds and renders. Throws SceneError / OptionError / std::runtime_error.
 RenderOutput RenderScene(const std::string& scene_path, const RenderSettings& settings,

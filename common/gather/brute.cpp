@@ -12,8 +12,9 @@ class BruteForceGather final : public GatherMethod {
  public:
   std::string name() const override { return "brute"; }
 
-  GatherResult Run(const LightingMatrix& matrix, const SubMatrixTask& task) const override {
-    GatherResult result;
+  TaskOutput RunTask(const LightingMatrix& matrix, const SubMatrixTask& task,
+                     const StageArtifact&) const override {
+    TaskOutput result;
     result.row_sums.resize(task.rows.size());
     // Rows are independent; each row is summed over all lights in light order, so the result
     // does not depend on how rows are spread over threads.

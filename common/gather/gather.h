@@ -2,6 +2,11 @@
 // against the light set), return each row's RGB sum over all columns, plus what it cost. One
 // method, one file (mitsuba-style), found by name in the registry (registry.cpp), so that the
 // farm can distribute any of them. Nothing here knows about networking.
+//
+// A method is a small graph of stages (DESIGN.md): each stage is a set of tasks that may run on
+// workers; between two stages the coordinator combines the tasks' payloads into an artifact that
+// every task of the next stage receives (MRCS: sample rows → cluster → accumulate columns).
+// Single-stage methods (brute, lightcuts) only implement RunTask.
 #pragma once
 
 #include <cstdint>
@@ -16,23 +21,42 @@
 namespace lightfarm {
 
 struct SubMatrixTask {
+  uint32_t stage = 0;
   uint32_t task_id = 0;
-  std::vector<uint32_t> rows;  // receiver (shading point) indices
-  uint64_t seed = 0;           // job seed; methods derive their randomness from (seed, task, ...)
+  std::vector<uint32_t> rows;       // receiver (shading point) indices
+  std::vector<uint32_t> neighbors;  // ids of neighbouring tasks (slices), when a method needs them
+  uint64_t seed = 0;  // job seed; methods derive randomness from (seed, stage, task, index)
 };
 
-struct GatherResult {
-  std::vector<RGBAccum> row_sums;  // one per task row, same order
+// What a task returns: row sums in the final stage, a method-defined payload in earlier ones.
+struct TaskOutput {
+  std::vector<RGBAccum> row_sums;  // final stage: one per task row, same order
+  std::vector<uint8_t> payload;    // earlier stages: input to Combine
   MatrixCounters counters;
-  std::map<std::string, double> stats;  // method-specific numbers (e.g. "clusters")
+  std::map<std::string, double> stats;  // method-specific numbers, summed over tasks
 };
+
+using StageArtifact = std::vector<uint8_t>;
 
 class GatherMethod {
  public:
   virtual ~GatherMethod() = default;
   virtual std::string name() const = 0;
-  // Must be deterministic for a given task, whatever the thread count.
-  virtual GatherResult Run(const LightingMatrix& matrix, const SubMatrixTask& task) const = 0;
+  virtual int stage_count() const { return 1; }
+  virtual std::string stage_name(int stage) const { return stage == 0 ? "gather" : "stage" + std::to_string(stage); }
+
+  // The tasks of a stage. `tiles` are the plan's row partitions (slices), covering every row once;
+  // the final stage must cover every row exactly once. Default: the tiles themselves.
+  virtual std::vector<SubMatrixTask> PlanStage(int stage, const LightingMatrix& matrix,
+                                               const std::vector<SubMatrixTask>& tiles,
+                                               const StageArtifact& previous) const;
+  // Runs one task. Must be deterministic for a given (stage, task, seed), whatever the thread
+  // count, so that a retried or re-run task gives the same bits.
+  virtual TaskOutput RunTask(const LightingMatrix& matrix, const SubMatrixTask& task,
+                             const StageArtifact& previous) const = 0;
+  // The coordinator's step after a non-final stage: outputs are in task-id order.
+  virtual StageArtifact Combine(int stage, const LightingMatrix& matrix,
+                                const std::vector<TaskOutput>& outputs) const;
 };
 
 // Creates a method by name, reading its parameters from `params` (marking them used).

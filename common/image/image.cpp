@@ -16,8 +16,13 @@ Image::Image(int w, int h, RGB fill) : width(w), height(h) {
 double Image::MeanLuminance() const {
   if (pixels.empty()) return 0.0;
   double sum = 0.0;
-  for (const RGB& p : pixels) sum += static_cast<double>(p.Luminance());
-  return sum / static_cast<double>(pixels.size());
+  size_t n = 0;
+  for (const RGB& p : pixels) {
+    if (!p.IsFinite()) continue;  // a stray NaN in a reference must not poison the mean
+    sum += static_cast<double>(p.Luminance());
+    ++n;
+  }
+  return n > 0 ? sum / static_cast<double>(n) : 0.0;
 }
 
 size_t Image::CountNonFinite() const {

@@ -29,7 +29,7 @@ struct Image {
   bool SameSize(const Image& o) const { return width == o.width && height == o.height; }
 
   // Mean of RGB::Luminance over all pixels, summed in double. 0 for an empty image.
-  double MeanLuminance() const;
+  double MeanLuminance() const;  // over finite pixels only
   // Number of pixels with a NaN or infinite channel.
   size_t CountNonFinite() const;
 };

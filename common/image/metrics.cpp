@@ -19,10 +19,6 @@ void CheckComparable(const Image& reference, const Image& image) {
                              SizeString(image));
   }
   if (reference.Empty()) throw std::runtime_error("cannot compare empty images");
-  if (size_t n = reference.CountNonFinite()) {
-    throw std::runtime_error("reference image has " + std::to_string(n) +
-                             " pixels with NaN or infinite values");
-  }
   if (size_t n = image.CountNonFinite()) {
     throw std::runtime_error("image has " + std::to_string(n) +
                              " pixels with NaN or infinite values");
@@ -81,7 +77,12 @@ const std::array<RGB, kColorMapSize>& ColorMap() {
 ErrorMetrics CompareImages(const Image& reference, const Image& image) {
   CheckComparable(reference, image);
   double diff2 = 0, ref2 = 0, diff1 = 0, ref1 = 0;
+  size_t excluded = 0;
   for (size_t i = 0; i < reference.PixelCount(); ++i) {
+    if (!reference.pixels[i].IsFinite()) {
+      ++excluded;
+      continue;
+    }
     for (int c = 0; c < 3; ++c) {
       const double r = reference.pixels[i][c];
       const double d = r - static_cast<double>(image.pixels[i][c]);
@@ -97,7 +98,8 @@ ErrorMetrics CompareImages(const Image& reference, const Image& image) {
   ErrorMetrics m;
   m.rel_l2 = std::sqrt(diff2 / ref2);
   m.rel_l1 = diff1 / ref1;
-  m.rmse = std::sqrt(diff2 / (3.0 * static_cast<double>(reference.PixelCount())));
+  m.rmse = std::sqrt(diff2 / (3.0 * static_cast<double>(reference.PixelCount() - excluded)));
+  m.excluded_pixels = excluded;
   return m;
 }
 
@@ -123,6 +125,7 @@ Image ErrorHeatmap(const Image& reference, const Image& image, float max_error) 
   const double scale = 1.0 / (mean * static_cast<double>(max_error));
   Image heatmap(reference.width, reference.height);
   for (size_t i = 0; i < reference.PixelCount(); ++i) {
+    if (!reference.pixels[i].IsFinite()) continue;  // excluded, as in CompareImages
     const RGB diff = reference.pixels[i] - image.pixels[i];
     const RGB abs_diff(std::abs(diff.r), std::abs(diff.g), std::abs(diff.b));
     heatmap.pixels[i] = HeatmapColor(static_cast<float>(double(abs_diff.Luminance()) * scale));

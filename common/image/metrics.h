@@ -10,11 +10,13 @@ struct ErrorMetrics {
   double rel_l2 = 0;  // ‖ref − img‖₂ / ‖ref‖₂ over all pixel channels (Hašan 2007, MRCS)
   double rel_l1 = 0;  // ‖ref − img‖₁ / ‖ref‖₁ over all pixel channels (Huo 2016)
   double rmse = 0;    // sqrt(mean over all pixel channels of (ref − img)²)
+  size_t excluded_pixels = 0;  // reference pixels that are NaN/Inf, left out of all three
 };
 
-// Computed in double. Throws std::runtime_error if the sizes differ, an image is empty, either
-// image holds a NaN/Inf (the metrics would be meaningless), or the reference is all zero
-// (relative errors undefined).
+// Computed in double. A path-traced reference may hold a stray NaN/Inf pixel (water-caustic's
+// does): such pixels are excluded and counted. Throws std::runtime_error if the sizes differ, an
+// image is empty, the compared image holds a NaN/Inf (a renderer bug the metrics must not hide),
+// or the reference is all zero (relative errors undefined).
 ErrorMetrics CompareImages(const Image& reference, const Image& image);
 
 // Top of the heatmap scale when none is given: an absolute error of 20% of the reference's

@@ -342,6 +342,16 @@ TEST(Metrics, RefusesWhatCannotBeCompared) {
   Image nan = a;
   nan.at(1, 1).g = std::nanf("");
   EXPECT_THROW(CompareImages(a, nan), std::runtime_error);
+  // A NaN in the reference (path tracers leave the odd one) is excluded and counted.
+  Image scaled = a;
+  scaled.at(2, 1).r *= 1.5f;
+  Image ref_nan = a;
+  ref_nan.at(2, 1).r = std::nanf("");
+  const ErrorMetrics excl = CompareImages(ref_nan, scaled);
+  EXPECT_EQ(excl.excluded_pixels, 1u);
+  EXPECT_EQ(excl.rel_l2, 0.0);  // the only differing pixel is the excluded one
+  EXPECT_EQ(CompareImages(a, scaled).excluded_pixels, 0u);
+  EXPECT_GT(CompareImages(a, scaled).rel_l2, 0.0);
   EXPECT_THROW(CompareImages(Image(), Image()), std::runtime_error);
 }
 
