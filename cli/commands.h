@@ -9,5 +9,11 @@ namespace lightfarm::cli {
 
 void AddRenderCommand(CLI::App& app);
 void AddCompareCommand(CLI::App& app);
+// The farm's client commands (one file each).
+void AddSubmitCommand(CLI::App& app);
+void AddStatusCommand(CLI::App& app);
+void AddWatchCommand(CLI::App& app);
+void AddCancelCommand(CLI::App& app);
+void AddFetchCommand(CLI::App& app);
 
 }  // namespace lightfarm::cli

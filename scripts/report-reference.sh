@@ -13,7 +13,6 @@ lf="$root/build/lightfarm"
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 out="$root/docs/reference-accuracy.md"
-mkdir -p "$root/docs/reference"
 
 row() {  # scene args... -> one markdown table row
   local scene=$1 tag=$2; shift 2

@@ -7,6 +7,7 @@
 #include "common/image/film.h"
 #include "common/image/filter.h"
 #include "common/lights/light_generation.h"
+#include "common/receivers/slicing.h"
 #include "common/scene/scene_description.h"
 
 namespace lightfarm {
@@ -51,7 +52,9 @@ Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, Ph
   plan.clamp = params.GetDouble("clamp", 0.01, 0.0, 1.0);
   plan.matrix_options.clamp = float(plan.clamp);
   float direct_fraction = float(params.GetDouble("direct_fraction", 0.5, 0.0, 1.0));
-  size_t tile_rows = size_t(params.GetInt("tile_rows", 4096, 1, 1 << 24));
+  SlicingOptions slicing;
+  slicing.rows_per_slice = size_t(params.GetInt("rows_per_slice", 800, 1, 1 << 24));
+  slicing.seed = settings.seed;
   plan.method = CreateGatherMethod(settings.method, params);
   params.RejectUnused();
   if (settings.spp < 1) throw OptionError("--spp must be >= 1");
@@ -84,17 +87,22 @@ Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, Ph
   lopt.seed = settings.seed;
   plan.lights = GenerateLights(scene, lopt);
   timer.End("lights");
+  if (plan.method->needs_light_tree()) {
+    plan.tree = std::make_unique<LightTree>(LightTree::Build(plan.lights, settings.seed));
+    timer.End("light_tree");
+  }
 
   plan.matrix = std::make_unique<LightingMatrix>(scene, plan.receivers, plan.lights,
                                                  plan.matrix_options);
-  // Row tiles: consecutive receivers, i.e. bands of the image (pixel-major sample order).
-  const size_t nrows = plan.matrix->rows();
-  for (size_t begin = 0; begin < nrows; begin += tile_rows) {
+  // Row tiles: slices of receivers clustered by position and normal (slicing.h), one task each.
+  std::vector<Slice> slices =
+      SliceReceivers(plan.receivers, Length(scene.bounds().Diagonal()), slicing);
+  for (Slice& slice : slices) {
     SubMatrixTask task;
     task.task_id = uint32_t(plan.tasks.size());
     task.seed = settings.seed;
-    for (size_t r = begin; r < std::min(nrows, begin + tile_rows); ++r)
-      task.rows.push_back(uint32_t(r));
+    task.rows = std::move(slice.rows);
+    task.neighbors = std::move(slice.neighbors);
     plan.tasks.push_back(std::move(task));
   }
   timer.End("plan");
@@ -105,23 +113,24 @@ GatherOutcome RunStagesLocally(const Plan& plan, const ProgressFn& progress, Pha
   PhaseTimer timer(times);
   const GatherMethod& method = *plan.method;
   const LightingMatrix& matrix = *plan.matrix;
+  const GatherContext ctx = plan.context();
   GatherOutcome outcome;
   outcome.row_sums.resize(matrix.rows());
   std::vector<uint8_t> covered(matrix.rows(), 0);
   StageArtifact artifact;
   const int stages = method.stage_count();
   for (int stage = 0; stage < stages; ++stage) {
-    std::vector<SubMatrixTask> tasks = method.PlanStage(stage, matrix, plan.tasks, artifact);
+    std::vector<SubMatrixTask> tasks = method.PlanStage(stage, ctx, plan.tasks, artifact);
     std::vector<TaskOutput> outputs(tasks.size());
     for (size_t t = 0; t < tasks.size(); ++t) {
-      outputs[t] = method.RunTask(matrix, tasks[t], artifact);
+      outputs[t] = method.RunTask(ctx, tasks[t], artifact);
       outcome.counters.Add(outputs[t].counters);
       for (const auto& [k, v] : outputs[t].stats) outcome.method_stats[k] += v;
       if (progress) progress(method.stage_name(stage), t + 1, tasks.size());
     }
     outcome.tasks += tasks.size();
     if (stage + 1 < stages) {
-      artifact = method.Combine(stage, matrix, outputs);
+      artifact = method.Combine(stage, ctx, outputs);
     } else {
       for (size_t t = 0; t < tasks.size(); ++t) {
         const SubMatrixTask& task = tasks[t];

@@ -36,11 +36,13 @@ struct Plan {
   Effects effects;
   ReceiverSet receivers;
   LightSet lights;
+  std::unique_ptr<LightTree> tree;  // built when the method needs it
   std::unique_ptr<LightingMatrix> matrix;
   std::unique_ptr<GatherMethod> method;
   std::vector<SubMatrixTask> tasks;
   MatrixOptions matrix_options;
   double clamp = 0;
+  GatherContext context() const { return GatherContext{*matrix, tree.get()}; }
 };
 
 struct PhaseTimes {

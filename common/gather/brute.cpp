@@ -12,8 +12,9 @@ class BruteForceGather final : public GatherMethod {
  public:
   std::string name() const override { return "brute"; }
 
-  TaskOutput RunTask(const LightingMatrix& matrix, const SubMatrixTask& task,
+  TaskOutput RunTask(const GatherContext& ctx, const SubMatrixTask& task,
                      const StageArtifact&) const override {
+    const LightingMatrix& matrix = ctx.matrix;
     TaskOutput result;
     result.row_sums.resize(task.rows.size());
     // Rows are independent; each row is summed over all lights in light order, so the result

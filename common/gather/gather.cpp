@@ -2,7 +2,7 @@
 
 namespace lightfarm {
 
-std::vector<SubMatrixTask> GatherMethod::PlanStage(int stage, const LightingMatrix&,
+std::vector<SubMatrixTask> GatherMethod::PlanStage(int stage, const GatherContext&,
                                                    const std::vector<SubMatrixTask>& tiles,
                                                    const StageArtifact&) const {
   std::vector<SubMatrixTask> tasks = tiles;
@@ -10,7 +10,7 @@ std::vector<SubMatrixTask> GatherMethod::PlanStage(int stage, const LightingMatr
   return tasks;
 }
 
-StageArtifact GatherMethod::Combine(int, const LightingMatrix&, const std::vector<TaskOutput>&) const {
+StageArtifact GatherMethod::Combine(int, const GatherContext&, const std::vector<TaskOutput>&) const {
   return {};
 }
 

@@ -15,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "common/lights/light_tree.h"
 #include "common/matrix/lighting_matrix.h"
 #include "common/util/options.h"
 
@@ -38,24 +39,32 @@ struct TaskOutput {
 
 using StageArtifact = std::vector<uint8_t>;
 
+// What a method may read besides its task. Everything here is deterministic in the job seed, so
+// a worker holds the same context as the coordinator.
+struct GatherContext {
+  const LightingMatrix& matrix;
+  const LightTree* tree = nullptr;  // set when the method's needs_light_tree()
+};
+
 class GatherMethod {
  public:
   virtual ~GatherMethod() = default;
   virtual std::string name() const = 0;
   virtual int stage_count() const { return 1; }
+  virtual bool needs_light_tree() const { return false; }
   virtual std::string stage_name(int stage) const { return stage == 0 ? "gather" : "stage" + std::to_string(stage); }
 
   // The tasks of a stage. `tiles` are the plan's row partitions (slices), covering every row once;
   // the final stage must cover every row exactly once. Default: the tiles themselves.
-  virtual std::vector<SubMatrixTask> PlanStage(int stage, const LightingMatrix& matrix,
+  virtual std::vector<SubMatrixTask> PlanStage(int stage, const GatherContext& ctx,
                                                const std::vector<SubMatrixTask>& tiles,
                                                const StageArtifact& previous) const;
   // Runs one task. Must be deterministic for a given (stage, task, seed), whatever the thread
   // count, so that a retried or re-run task gives the same bits.
-  virtual TaskOutput RunTask(const LightingMatrix& matrix, const SubMatrixTask& task,
+  virtual TaskOutput RunTask(const GatherContext& ctx, const SubMatrixTask& task,
                              const StageArtifact& previous) const = 0;
   // The coordinator's step after a non-final stage: outputs are in task-id order.
-  virtual StageArtifact Combine(int stage, const LightingMatrix& matrix,
+  virtual StageArtifact Combine(int stage, const GatherContext& ctx,
                                 const std::vector<TaskOutput>& outputs) const;
 };
 

@@ -8,5 +8,8 @@
 namespace lightfarm {
 
 std::unique_ptr<GatherMethod> CreateBruteForceGather(const OptionMap& params);
+std::unique_ptr<GatherMethod> CreateMrcsGather(const OptionMap& params);
+std::unique_ptr<GatherMethod> CreateLightcutsGather(const OptionMap& params);
+std::unique_ptr<GatherMethod> CreateSparseCompletionGather(const OptionMap& params);
 
 }  // namespace lightfarm

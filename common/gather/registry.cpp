@@ -12,6 +12,9 @@ using Factory = std::function<std::unique_ptr<GatherMethod>(const OptionMap&)>;
 const std::vector<std::pair<std::string, Factory>>& Registry() {
   static const std::vector<std::pair<std::string, Factory>> registry = {
       {"brute", CreateBruteForceGather},
+      {"mrcs", CreateMrcsGather},
+      {"lightcuts", CreateLightcutsGather},
+      {"sparse-completion", CreateSparseCompletionGather},
   };
   return registry;
 }

@@ -44,6 +44,9 @@ class LightingMatrix {
   const LightSet& lights() const { return lights_; }
   const ReceiverSet& receivers() const { return receivers_; }
   float clamp_distance() const { return clamp_distance_; }
+  // The scene, for methods that bound elements before evaluating them (lightcuts' material
+  // bounds need the receivers' and surface VPLs' materials).
+  const Scene& scene() const { return scene_; }
 
   // out[k] = A(rows[k], cols[k]) for an arbitrary list of entries.
   void EvaluateEntries(std::span<const uint32_t> rows, std::span<const uint32_t> cols,

@@ -1,0 +1,74 @@
+#include "cli/farm_options.h"
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+
+#include "common/farm/proto_convert.h"
+#include "common/image/image_io.h"
+#include "common/util/error.h"
+
+namespace lightfarm::cli {
+
+namespace fs = std::filesystem;
+
+void AddServerOptions(CLI::App* cmd, ServerArgs& a) {
+  cmd->add_option("--server", a.server, "Coordinator HOST:PORT")->required();
+  cmd->add_option("--token-file", a.token_file, "File holding the bearer token");
+  cmd->add_flag("--tls", a.tls, "Connect with TLS");
+  cmd->add_option("--tls-ca", a.tls_ca, "PEM root certificates for TLS (default: system)");
+  cmd->add_option("--timeout", a.timeout, "Seconds allowed for each request")->check(CLI::PositiveNumber);
+}
+
+std::unique_ptr<RenderClient> ConnectToCoordinator(const ServerArgs& a) {
+  ChannelOptions o;
+  o.address = a.server;
+  o.tls = a.tls || !a.tls_ca.empty();
+  o.tls_ca = a.tls_ca;
+  return std::make_unique<RenderClient>(MakeChannel(o), ReadTokenFile(a.token_file), a.timeout);
+}
+
+namespace {
+
+void WriteAtomically(const std::string& path, const std::string& data) {
+  const std::string tmp = path + ".tmp";
+  {
+    std::ofstream f(tmp, std::ios::binary);
+    f.write(data.data(), std::streamsize(data.size()));
+    if (!f) throw std::runtime_error("cannot write " + path);
+  }
+  fs::rename(tmp, path);
+}
+
+}  // namespace
+
+void WriteFetchedResult(const std::string& exr_path, const std::string& exr_bytes,
+                        const std::string& stats_json, const std::string& stats_path) {
+  if (exr_path.size() < 5 || exr_path.substr(exr_path.size() - 4) != ".exr")
+    throw OptionError("--out must name an .exr file, got \"" + exr_path + "\"");
+  fs::path out(exr_path);
+  if (out.has_parent_path()) fs::create_directories(out.parent_path());
+  WriteAtomically(exr_path, exr_bytes);
+  const std::string stem = exr_path.substr(0, exr_path.size() - 4);
+  WritePNG(stem + ".png", ReadImage(exr_path));
+  WriteAtomically(stats_path.empty() ? stem + ".json" : stats_path, stats_json + "\n");
+}
+
+std::string DescribeJob(const v1::JobStatus& st) {
+  char buf[512];
+  std::string s = "job " + st.job_id() + ": " + JobStateName(st.state());
+  if (st.state() == v1::JOB_STATE_RUNNING) {
+    std::snprintf(buf, sizeof(buf), ", stage %d/%d (%s), %llu/%llu tasks", st.stage() + 1,
+                  st.stage_count(), st.stage_name().c_str(), (unsigned long long)st.tasks_done(),
+                  (unsigned long long)st.tasks_total());
+    s += buf;
+    if (st.eta_s() >= 0) {
+      std::snprintf(buf, sizeof(buf), ", eta %.1fs", st.eta_s());
+      s += buf;
+    }
+  }
+  if (!st.error().empty() && st.state() != v1::JOB_STATE_CANCELLED) s += " (" + st.error() + ")";
+  return s;
+}
+
+}  // namespace lightfarm::cli

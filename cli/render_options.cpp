@@ -1,0 +1,41 @@
+#include "cli/render_options.h"
+
+#include <regex>
+
+#include "common/util/error.h"
+
+namespace lightfarm::cli {
+
+void AddRenderOptions(CLI::App* cmd, RenderOptionArgs& a) {
+  cmd->add_option("--method", a.method, "Gather method (brute, ...)");
+  cmd->add_option("--resolution", a.resolution, "WxH (default: the scene's Film)");
+  cmd->add_option("--filter", a.filter, "Override the scene's pixel filter")
+      ->check(CLI::IsMember({"box", "triangle", "gaussian", "mitchell", "sinc"}));
+  cmd->add_option("--spp", a.spp, "Camera samples per pixel")->check(CLI::Range(1, 4096));
+  cmd->add_option("--lights", a.lights, "Number of virtual lights")->check(CLI::Range(1LL, 100000000LL));
+  cmd->add_option("--seed", a.seed, "Random seed");
+  cmd->add_option("--param", a.params, "Method/renderer parameter KEY=VALUE (repeatable)");
+}
+
+RenderSettings ToRenderSettings(const RenderOptionArgs& a) {
+  RenderSettings s;
+  s.method = a.method;
+  if (!a.resolution.empty()) {
+    std::smatch m;
+    static const std::regex re(R"(^(\d{1,6})x(\d{1,6})$)");
+    if (!std::regex_match(a.resolution, m, re))
+      throw OptionError("--resolution expects WxH (e.g. 256x256), got \"" + a.resolution + "\"");
+    s.width = std::stoi(m[1]);
+    s.height = std::stoi(m[2]);
+    if (s.width < 1 || s.height < 1 || s.width > 65536 || s.height > 65536)
+      throw OptionError("--resolution " + a.resolution + " is out of range (1..65536 per axis)");
+  }
+  s.filter = a.filter;
+  s.spp = a.spp;
+  s.lights = size_t(a.lights);
+  s.seed = a.seed;
+  s.params = a.params;
+  return s;
+}
+
+}  // namespace lightfarm::cli

@@ -1,0 +1,25 @@
+// The render options `render` and `submit` share (DESIGN.md contract), parsed into RenderSettings.
+#pragma once
+
+#include <CLI/CLI.hpp>
+#include <string>
+#include <vector>
+
+#include "common/farm/render_job.h"
+
+namespace lightfarm::cli {
+
+struct RenderOptionArgs {
+  std::string method = "brute";
+  std::string resolution;
+  std::string filter;
+  int spp = 1;
+  long long lights = 10000;
+  unsigned long long seed = 0;
+  std::vector<std::string> params;
+};
+
+void AddRenderOptions(CLI::App* cmd, RenderOptionArgs& args);
+RenderSettings ToRenderSettings(const RenderOptionArgs& args);  // throws OptionError
+
+}  // namespace lightfarm::cli

@@ -1,0 +1,48 @@
+#include "common/farm/proto_convert.h"
+
+namespace lightfarm {
+
+v1::RenderSettings ToProto(const RenderSettings& s) {
+  v1::RenderSettings p;
+  p.set_method(s.method);
+  p.set_width(s.width);
+  p.set_height(s.height);
+  p.set_filter(s.filter);
+  p.set_spp(s.spp);
+  p.set_lights(s.lights);
+  p.set_seed(s.seed);
+  for (const std::string& kv : s.params) p.add_params(kv);
+  return p;
+}
+
+RenderSettings FromProto(const v1::RenderSettings& p) {
+  RenderSettings s;
+  s.method = p.method().empty() ? "brute" : p.method();
+  s.width = p.width();
+  s.height = p.height();
+  s.filter = p.filter();
+  s.spp = p.spp() == 0 ? 1 : p.spp();
+  s.lights = p.lights() == 0 ? 10000 : size_t(p.lights());
+  s.seed = p.seed();
+  s.params.assign(p.params().begin(), p.params().end());
+  return s;
+}
+
+const char* JobStateName(v1::JobState state) {
+  switch (state) {
+    case v1::JOB_STATE_QUEUED: return "queued";
+    case v1::JOB_STATE_PLANNING: return "planning";
+    case v1::JOB_STATE_RUNNING: return "running";
+    case v1::JOB_STATE_DONE: return "done";
+    case v1::JOB_STATE_FAILED: return "failed";
+    case v1::JOB_STATE_CANCELLED: return "cancelled";
+    default: return "unknown";
+  }
+}
+
+bool IsTerminal(v1::JobState state) {
+  return state == v1::JOB_STATE_DONE || state == v1::JOB_STATE_FAILED ||
+         state == v1::JOB_STATE_CANCELLED;
+}
+
+}  // namespace lightfarm

@@ -1,0 +1,648 @@
+// `lightcuts` (Walter et al. 2005): for every receiver, a cut through the light tree chosen by
+// refining the node with the largest error bound until every bound is below `error` × the
+// current total estimate (or the cut reaches `max_cut` nodes).
+//
+// - A node's estimate is its representative's matrix element scaled channel by channel by
+//   intensity(node) / power(representative) (Walter 2005, Eq. 2: the cluster's lights share the
+//   representative's material, geometry and visibility terms). A leaf's estimate is its matrix
+//   element itself, so with error=0 the cut refines to every leaf that can contribute and the
+//   sum equals brute force. A child that inherits its parent's representative reuses the
+//   parent's element: each refinement costs one new element (one shadow ray).
+// - A node's error bound is an upper bound of Σ_j A_ij over its lights with visibility bounded
+//   by 1: throughput · (material bound) · (geometric bound) · (emission bound) · intensity. All
+//   bounds come from the node's bounding box and normal cone through the cone of directions
+//   from the receiver to the box (its bounding sphere) — see ReceiverBounds and NodeBound.
+//   * geometric: 1/max(d², d_min²) for VPLs (the clamp, d = distance to the box), 1/d² for
+//     point lights (unbounded when the receiver is inside the box: refine), 1 for directional.
+//   * receiver material: diffuse lobes: albedo/π × the cosine bound over the box (per side:
+//     reflection on the side of wo, diffuse transmission on the other); Trowbridge-Reitz
+//     lobes (conductor, rough coat, rough dielectric reflection): f·cos = D F G / (4 cos_o)
+//     with F, G ≤ 1 and D bounded at the half vector closest to the normal: the half vector's
+//     angle to the normal is at least half the angle between wi and the mirror direction of wo
+//     (the half-vector map contracts sphere distances by at most 2), so D is bounded from the
+//     angle between the box cone and the mirror direction. Rough-dielectric transmission has
+//     no bound here: nodes that can reach that side are refined to leaves.
+//   * emission: area VPLs: the cosine bound between the node's normal cone and the directions
+//     from the box to the receiver (1 for two-sided emitters); surface VPLs: the same cosine
+//     bound times the largest diffuse albedo/π below the node, plus, for glossy VPLs, the same
+//     half-vector bound of D as for receivers, against a cone bounding the VPLs' mirror
+//     directions (with the largest 1 / (4 cos_in π ax ay) and alpha below the node); points and
+//     directional lights: 1.
+//   The per-node emission bounds need the VPLs' materials; they are computed once per tree
+//   (bottom-up, cached in the method).
+// - Coated diffuse base: f_base(wo, wi) = K h(wo) h(wi) with h(w) = (1 − E(w)) e^{−a/cos'},
+//   h ≤ 1 and h largest near the normal, so f_base ≤ f(wo, n) / (1 − E(n)); E(n) is bounded
+//   by F0 (smooth coat, exact) or 4 F0 + 0.02 (rough coat, with margin for the tabulated E).
+//
+// Parameters: error (relative error bound, default 0.02), max_cut (default 1000; unlimited
+// when error = 0, which then means "exact").
+// Stats: "cut_size" is the sum of the final cut sizes over the task's rows (stats / rows = mean
+// cut size); "cut_capped" counts rows whose cut stopped at max_cut.
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <memory>
+#include <mutex>
+#include <span>
+
+#include "common/gather/methods.h"
+#include "common/scene/bsdf.h"
+#include "common/scene/fresnel.h"
+#include "common/scene/microfacet.h"
+
+namespace lightfarm {
+
+namespace {
+
+// ---------------------------------------------------------------------------------------
+// Cones of directions
+
+// Angles are kept as (cos, sin) pairs: the bounds below are evaluated for every cut node, and
+// acos/cos dominated their cost. Rounding is covered by a margin of kAngleMargin (~1e-4 rad).
+constexpr float kAngleMargin = 1e-4f;
+
+// A half-angle θ ∈ [0, π] as (cos θ, sin θ).
+struct HalfAngle {
+  float cos = -1, sin = 0;  // default: π, every direction
+  bool All() const { return cos <= -1.f; }
+  static HalfAngle FromCos(float c) {
+    HalfAngle a;
+    a.cos = Clamp(c, -1.f, 1.f);
+    a.sin = SafeSqrt(1 - a.cos * a.cos);
+    return a;
+  }
+  // θ1 + θ2, saturating at π.
+  friend HalfAngle operator+(HalfAngle a, HalfAngle b) {
+    if (a.All() || b.All()) return HalfAngle();
+    HalfAngle s;
+    s.cos = a.cos * b.cos - a.sin * b.sin;
+    s.sin = a.sin * b.cos + a.cos * b.sin;
+    if (s.sin < 0 || s.cos <= -1.f) return HalfAngle();  // θ1 + θ2 ≥ π
+    return s;
+  }
+};
+
+// Largest cos(angle(n, w)) over unit w within half-angle `spread` of `axis`, where
+// `cos_na` = n·axis: cos(max(0, angle(n, axis) − spread)), 0 when that angle reaches 90°.
+float ConeMaxCos(float cos_na, HalfAngle spread) {
+  if (spread.All() || cos_na >= spread.cos) return 1.f;
+  // cos(a − s) = cos a cos s + sin a sin s, for a > s
+  float v = cos_na * spread.cos + SafeSqrt(1 - cos_na * cos_na) * spread.sin;
+  if (v < -kAngleMargin) return 0.f;
+  return std::min(1.f, std::max(0.f, v) + kAngleMargin);
+}
+
+// The directions from a receiver to a node: a cone (axis, half-angle) around the node's
+// bounding sphere, and the squared distance to its box.
+struct DirectionCone {
+  Vec3 axis{0, 0, 1};
+  HalfAngle spread;  // default: every direction
+  float dist2 = 0;   // squared distance from the receiver to the box (0 inside)
+};
+
+DirectionCone ConeToBox(Vec3 p, const Bounds3& b) {
+  DirectionCone c;
+  Vec3 lo_gap = b.lo - p, hi_gap = p - b.hi;
+  Vec3 gap = Max(Max(lo_gap, hi_gap), Vec3(0, 0, 0));
+  c.dist2 = LengthSquared(gap);
+  Vec3 to_center = b.Center() - p;
+  float d = Length(to_center);
+  float r = b.Radius();
+  // Widen slightly so rounding never excludes a corner direction.
+  r = r * (1 + 1e-5f) + 1e-7f * (d + std::abs(p.x) + std::abs(p.y) + std::abs(p.z));
+  if (d > r) {
+    c.axis = to_center / d;
+    float sin_s = std::min(1.f, r / d);
+    c.spread.sin = sin_s;
+    c.spread.cos = SafeSqrt(1 - sin_s * sin_s);
+  }
+  return c;
+}
+
+// Upper bound of max(0, n·w) for w in the cone, also using the box itself: n·(x − p) is
+// linear in x, so its maximum over the box is at a corner, and |x − p| ≥ the box distance.
+float CosBound(Vec3 n, const DirectionCone& c, Vec3 p, const Bounds3* box) {
+  float bound = ConeMaxCos(Dot(n, c.axis), c.spread);
+  if (box && bound > 0) {
+    float max_dot = 0;
+    for (int i = 0; i < 3; ++i)
+      max_dot += std::max(n[i] * (box->lo[i] - p[i]), n[i] * (box->hi[i] - p[i]));
+    if (max_dot <= 0) return 0.f;
+    if (c.dist2 > 0) bound = std::min(bound, max_dot / std::sqrt(c.dist2));
+  }
+  return bound;
+}
+
+// ---------------------------------------------------------------------------------------
+// BSDF bounds
+
+// Trowbridge-Reitz D over microfacet normals at least θ_min from the normal, given
+// cos²θ_min: D = 1 / (π ax ay (cos²θ + sin²θ (cos²φ/ax² + sin²φ/ay²))²) ≤ 1 / (π ax ay s²)
+// with s = cos²θ + sin²θ / a_max², minimal at θ_min (a_max ≤ 1) or at θ = 90° (a_max > 1).
+// The lower bound of s, given a_max (the largest alpha) and an upper bound of cos²θ.
+float MicrofacetSBound(float amax, float cos2_theta_min) {
+  float inv_a2 = 1.f / Sqr(amax);
+  if (amax > 1.f) return inv_a2;
+  float c2 = Clamp(cos2_theta_min, 0.f, 1.f);
+  return c2 + (1 - c2) * inv_a2;
+}
+// 1 / (π ax ay): D at its peak for a_max ≤ 1; alphas clamped as TrowbridgeReitz does.
+float MicrofacetPeakScale(float alpha_x, float alpha_y) {
+  return 1.f / (kPi * std::max(alpha_x, 1e-4f) * std::max(alpha_y, 1e-4f));
+}
+float MicrofacetDBound(float alpha_x, float alpha_y, float cos2_theta_min) {
+  float amax = std::max(std::max(alpha_x, alpha_y), 1e-4f);
+  return MicrofacetPeakScale(alpha_x, alpha_y) / Sqr(MicrofacetSBound(amax, cos2_theta_min));
+}
+
+// Upper bound of cos² of the half-vector angle for directions w within `spread` of `axis`,
+// against a lobe whose mirror directions lie within `mirror_spread` of `mirror`: the half
+// vector's angle to the normal is at least half the angle between w and the mirror direction.
+float HalfVectorCos2Bound(Vec3 axis, HalfAngle spread, Vec3 mirror, HalfAngle mirror_spread);
+
+float HalfVectorCos2Bound(Vec3 axis, HalfAngle spread, Vec3 mirror, HalfAngle mirror_spread) {
+  // Δ = angle(axis, mirror) − both spreads; cos²θ_h ≤ cos²(Δ/2) = (1 + cos Δ) / 2.
+  HalfAngle total = spread + mirror_spread;
+  const float cos_am = Dot(axis, mirror);
+  if (total.All() || cos_am >= total.cos) return 1.f;
+  float cos_delta = cos_am * total.cos + SafeSqrt(1 - cos_am * cos_am) * total.sin;
+  return std::min(1.f, 0.5f * (1 + cos_delta) + kAngleMargin);
+}
+
+// What bounds f(wo, wi)·|cos θi| of one material seen from a fixed wo (local frame, z = n).
+struct LobeBound {
+  RGB diffuse_front;  // bound of f on the side of wo (multiplied by the cosine bound)
+  RGB diffuse_back;   // on the other side
+  bool glossy = false;  // a Trowbridge-Reitz reflection lobe on the side of wo
+  float alpha_x = 0, alpha_y = 0;
+  float glossy_scale = 0;     // 1 / (4 |cos_o|): f·cos ≤ D · glossy_scale
+  bool back_unbounded = false;  // rough dielectric transmission
+};
+
+bool IsSmoothMaterial(const Material& m) {
+  return std::max(m.alpha_x, m.alpha_y) < kEffectivelySmoothAlpha;
+}
+
+LobeBound MaterialLobeBound(const Material& m, Vec3 wo, TransportMode mode) {
+  LobeBound b;
+  if (wo.z == 0) return b;
+  const float abs_cos_o = std::abs(wo.z);
+  auto set_glossy = [&] {
+    b.glossy = true;
+    b.alpha_x = m.alpha_x;
+    b.alpha_y = m.alpha_y;
+    b.glossy_scale = 1.f / (4 * abs_cos_o);
+  };
+  switch (m.type) {
+    case MaterialType::kDiffuse:
+      b.diffuse_front = m.reflectance * kInvPi;
+      break;
+    case MaterialType::kDiffuseTransmission:
+      b.diffuse_front = m.reflectance * kInvPi;
+      b.diffuse_back = m.transmittance * kInvPi;
+      break;
+    case MaterialType::kCoatedDiffuse: {
+      // The base's largest value is near the normal (see the header comment).
+      Vec3 wo_up = wo.z < 0 ? -wo : wo;
+      RGB at_normal = EvalBSDF(m, wo_up, Vec3(0, 0, 1), mode);
+      float eta = m.eta.r > 0 ? m.eta.r : 1.f;
+      float f0 = FrDielectric(1.f, eta);
+      float e_normal = IsSmoothMaterial(m) ? f0 : std::min(0.5f, 4 * f0 + 0.02f);
+      b.diffuse_front = at_normal * ((1 + 1e-3f) / (1 - e_normal));
+      if (!IsSmoothMaterial(m)) set_glossy();
+      break;
+    }
+    case MaterialType::kConductor:
+      if (!IsSmoothMaterial(m)) set_glossy();
+      break;
+    case MaterialType::kDielectric:
+      if (m.eta.r != 1.f && !IsSmoothMaterial(m)) {
+        set_glossy();
+        b.back_unbounded = true;
+      }
+      break;
+    case MaterialType::kThinDielectric:
+    case MaterialType::kInterface:
+      break;
+  }
+  return b;
+}
+
+// ---------------------------------------------------------------------------------------
+// Per-node emission bounds of VPL clusters (max over the node's lights)
+
+// Smallest cone containing cones a and b (angles as cosines; -1: unbounded).
+void UnionCones(Vec3 axis_a, float cos_a, Vec3 axis_b, float cos_b, Vec3* axis, float* cos_out) {
+  if (cos_a <= -1.f || cos_b <= -1.f) {
+    *axis = axis_a;
+    *cos_out = -1.f;
+    return;
+  }
+  const float theta_a = SafeAcos(cos_a), theta_b = SafeAcos(cos_b);
+  const float theta_d = SafeAcos(Dot(axis_a, axis_b));
+  if (theta_d + theta_b <= theta_a) {
+    *axis = axis_a;
+    *cos_out = cos_a;
+    return;
+  }
+  if (theta_d + theta_a <= theta_b) {
+    *axis = axis_b;
+    *cos_out = cos_b;
+    return;
+  }
+  const float theta_o = 0.5f * (theta_a + theta_d + theta_b);
+  Vec3 ortho = axis_b - axis_a * Dot(axis_a, axis_b);
+  const float len = Length(ortho);
+  if (theta_o >= kPi || len < 1e-6f) {
+    *axis = axis_a;
+    *cos_out = -1.f;
+    return;
+  }
+  const float theta_r = theta_o - theta_a;
+  *axis = Normalize(axis_a * std::cos(theta_r) + ortho * (std::sin(theta_r) / len));
+  *cos_out = std::max(-1.f, std::cos(theta_o) - 1e-5f);
+}
+
+struct EmissionBound {
+  float diffuse_front = 0;  // × cosine bound of the normal cone
+  float diffuse_back = 0;   // × cosine bound of the reversed cone
+  // Glossy lobes (reflection side): f·cos ≤ glossy_peak / s², s from glossy_alpha and the
+  // half-vector bound against the cone of mirror directions.
+  float glossy_peak = 0;   // max of 1 / (4 cos_in π ax ay)
+  float glossy_alpha = 0;  // max a_max
+  Vec3 mirror_axis{0, 0, 1};
+  float mirror_cos = 1;
+  bool back_unbounded = false;
+  void Max(const EmissionBound& o) {
+    diffuse_front = std::max(diffuse_front, o.diffuse_front);
+    diffuse_back = std::max(diffuse_back, o.diffuse_back);
+    if (o.glossy_peak > 0) {
+      if (glossy_peak > 0) {
+        UnionCones(mirror_axis, mirror_cos, o.mirror_axis, o.mirror_cos, &mirror_axis, &mirror_cos);
+      } else {
+        mirror_axis = o.mirror_axis;
+        mirror_cos = o.mirror_cos;
+      }
+      glossy_peak = std::max(glossy_peak, o.glossy_peak);
+      glossy_alpha = std::max(glossy_alpha, o.glossy_alpha);
+    }
+    back_unbounded = back_unbounded || o.back_unbounded;
+  }
+  // Bound of the glossy lobes' f·cos towards directions within `spread` of `axis`.
+  float Glossy(Vec3 axis, HalfAngle spread) const {
+    if (glossy_peak <= 0) return 0.f;
+    float cos2 = HalfVectorCos2Bound(axis, spread, mirror_axis, HalfAngle::FromCos(mirror_cos));
+    return glossy_peak / Sqr(MicrofacetSBound(glossy_alpha, cos2));
+  }
+};
+
+EmissionBound LightEmissionBound(const VirtualLight& l, const std::vector<Material>& materials) {
+  EmissionBound e;
+  switch (l.kind) {
+    case VirtualLightKind::kAreaVPL:
+      e.diffuse_front = 1;
+      if (l.two_sided) e.diffuse_back = 1;
+      break;
+    case VirtualLightKind::kSurfaceVPL: {
+      // The tree's cone holds n flipped to the side of wi: "front" is the reflection side.
+      Vec3 n = FaceForward(l.n, l.wi);
+      Frame frame(n);
+      LobeBound b = MaterialLobeBound(materials[l.material], frame.ToLocal(l.wi),
+                                      TransportMode::kImportance);
+      e.diffuse_front = b.diffuse_front.Max();
+      e.diffuse_back = b.diffuse_back.Max();
+      if (b.glossy) {
+        e.glossy_peak = MicrofacetPeakScale(b.alpha_x, b.alpha_y) * b.glossy_scale;
+        e.glossy_alpha = std::max(std::max(b.alpha_x, b.alpha_y), 1e-4f);
+        e.mirror_axis = n * (2 * Dot(l.wi, n)) - l.wi;
+        e.mirror_cos = 1;
+      }
+      e.back_unbounded = b.back_unbounded;
+      break;
+    }
+    case VirtualLightKind::kPoint:
+    case VirtualLightKind::kDirectional:
+      e.diffuse_front = 1;  // unused: these kinds have no emission-side factor above 1
+      break;
+  }
+  return e;
+}
+
+std::vector<EmissionBound> ComputeEmissionBounds(const LightTree& tree, const LightSet& lights,
+                                                 const std::vector<Material>& materials) {
+  const std::vector<LightTreeNode>& nodes = tree.nodes();
+  std::vector<EmissionBound> bounds(nodes.size());
+  tbb::parallel_for(size_t(0), nodes.size(), [&](size_t i) {
+    if (nodes[i].IsLeaf())
+      bounds[i] = LightEmissionBound(lights.lights[nodes[i].representative], materials);
+  });
+  // Children follow their parent in pre-order: a reverse sweep sees them first.
+  for (size_t i = nodes.size(); i-- > 0;) {
+    const LightTreeNode& n = nodes[i];
+    if (n.IsLeaf()) continue;
+    bounds[i] = bounds[size_t(n.left)];
+    bounds[i].Max(bounds[size_t(n.right)]);
+  }
+  return bounds;
+}
+
+// ---------------------------------------------------------------------------------------
+// One receiver's view of the tree
+
+struct ReceiverBounds {
+  Vec3 p;
+  Vec3 n_front;  // shading normal on the side of wo
+  Vec3 mirror;   // wo reflected about the shading normal (world space)
+  RGB throughput;
+  LobeBound lobe;
+};
+
+// Upper bound of the receiver's f·|cos| over the cone of directions `c` (RGB).
+RGB ReceiverMaterialBound(const ReceiverBounds& r, const DirectionCone& c, const Bounds3* box) {
+  float cos_front = CosBound(r.n_front, c, r.p, box);
+  float cos_back = CosBound(-r.n_front, c, r.p, box);
+  RGB bound = r.lobe.diffuse_front * cos_front + r.lobe.diffuse_back * cos_back;
+  if (r.lobe.glossy && cos_front > 0) {
+    float cos2_h = HalfVectorCos2Bound(c.axis, c.spread, r.mirror, HalfAngle::FromCos(1.f));
+    bound += RGB(MicrofacetDBound(r.lobe.alpha_x, r.lobe.alpha_y, cos2_h) * r.lobe.glossy_scale);
+  }
+  if (r.lobe.back_unbounded && cos_back > 0) return RGB(kInfinity);
+  return bound;
+}
+
+class LightcutsGather final : public GatherMethod {
+ public:
+  LightcutsGather(double error, size_t max_cut) : error_(error), max_cut_(max_cut) {}
+
+  std::string name() const override { return "lightcuts"; }
+  bool needs_light_tree() const override { return true; }
+
+  TaskOutput RunTask(const GatherContext& ctx, const SubMatrixTask& task,
+                     const StageArtifact&) const override {
+    if (!ctx.tree) throw std::logic_error("lightcuts: the plan has no light tree");
+    std::shared_ptr<const std::vector<EmissionBound>> emission = Emission(ctx);
+    TaskOutput result;
+    result.row_sums.resize(task.rows.size());
+    // Chunks of rows refine their cuts in lockstep so that their new elements are evaluated
+    // in one batch (Embree traces batches of shadow rays much faster than single rays). Each
+    // row's cut depends only on its own elements, so the result does not depend on the chunks
+    // or on how they are spread over threads.
+    constexpr size_t kRowsPerChunk = 64;
+    const size_t nchunks = (task.rows.size() + kRowsPerChunk - 1) / kRowsPerChunk;
+    std::vector<ChunkStats> chunks(nchunks);
+    tbb::parallel_for(size_t(0), nchunks, [&](size_t c) {
+      size_t begin = c * kRowsPerChunk, end = std::min(task.rows.size(), begin + kRowsPerChunk);
+      GatherRows(ctx.matrix, *ctx.tree, *emission,
+                 std::span<const uint32_t>(task.rows).subspan(begin, end - begin),
+                 std::span<RGBAccum>(result.row_sums).subspan(begin, end - begin), &chunks[c]);
+    });
+    double cut_size = 0, capped = 0;
+    for (const ChunkStats& c : chunks) {
+      result.counters.Add(c.counters);
+      cut_size += c.cut_size;
+      capped += c.capped;
+    }
+    result.stats["cut_size"] = cut_size;
+    result.stats["cut_capped"] = capped;
+    return result;
+  }
+
+ private:
+  struct ChunkStats {
+    MatrixCounters counters;
+    double cut_size = 0, capped = 0;
+  };
+
+  struct CutNode {
+    float bound = 0;  // error bound (luminance); 0 for leaves and nodes that cannot contribute
+    uint32_t node = 0;
+    RGB estimate;
+    RGB rep_value;  // the representative's element
+    bool rep_known = false;
+  };
+  // The cut as a max-heap of small entries on the bound (ties by node index, so the cut is
+  // deterministic) pointing into a pool of cut nodes.
+  struct HeapEntry {
+    float bound;
+    uint32_t node;
+    uint32_t slot;  // index into RowCut::pool
+  };
+  static bool HeapLess(const HeapEntry& a, const HeapEntry& b) {
+    if (a.bound != b.bound) return a.bound < b.bound;
+    return a.node > b.node;
+  }
+
+  struct RowCut {
+    ReceiverBounds receiver;
+    std::vector<CutNode> pool;  // every node that has been in the cut
+    std::vector<HeapEntry> heap;  // the current cut
+    RGB total;  // running sum of the cut's estimates
+    bool done = false;
+  };
+
+  // Error bound (luminance of the RGB bound) of a node for a receiver; 0 when no light below
+  // can reach it.
+  static float NodeBound(const ReceiverBounds& r, const LightTreeNode& node,
+                         const EmissionBound& e, float clamp2) {
+    if (node.intensity.IsBlack()) return 0.f;
+    RGB material;
+    float light = 1, geometric = 1;
+    if (node.kind == VirtualLightKind::kDirectional) {
+      // Directions towards the lights: the travel directions reversed.
+      DirectionCone c;
+      c.axis = -node.cone_axis;
+      c.spread = HalfAngle::FromCos(node.cone_cos);
+      material = ReceiverMaterialBound(r, c, nullptr);
+    } else {
+      DirectionCone c = ConeToBox(r.p, node.bounds);
+      material = ReceiverMaterialBound(r, c, &node.bounds);
+      if (material.IsBlack()) return 0.f;
+      if (node.kind == VirtualLightKind::kPoint) {
+        geometric = c.dist2 > 0 ? 1.f / c.dist2 : kInfinity;
+      } else {
+        // The clamp bounds 1/d² by 1/d_min² (elements are clamped).
+        geometric = 1.f / std::max(c.dist2, clamp2);
+        // Emission: cosine between the node's normals and the directions box → receiver.
+        float front = 1, back = 1;
+        if (node.cone_cos > -1.f && !c.spread.All()) {
+          HalfAngle spread = HalfAngle::FromCos(node.cone_cos) + c.spread;
+          float cos_na = -Dot(node.cone_axis, c.axis);
+          front = ConeMaxCos(cos_na, spread);
+          back = ConeMaxCos(-cos_na, spread);
+        }
+        light = e.diffuse_front * front + e.diffuse_back * back +
+                (front > 0 ? e.Glossy(-c.axis, c.spread) : 0.f);
+        if (e.back_unbounded && back > 0) light = kInfinity;
+      }
+    }
+    float lum = (r.throughput * node.intensity * material).Luminance() * light * geometric;
+    if (std::isnan(lum)) return kInfinity;  // 0 · ∞: no bound, refine
+    return lum;
+  }
+
+  // The node's estimate from its representative's element (Walter 2005, Eq. 2), channel by
+  // channel; a leaf's estimate is its element.
+  static RGB Scale(const RGB& rep_value, const LightTreeNode& node, const VirtualLight& rep) {
+    if (node.IsLeaf()) return rep_value;
+    RGB e;
+    for (int c = 0; c < 3; ++c)
+      e[c] = rep.power[c] > 0 ? rep_value[c] * (node.intensity[c] / rep.power[c]) : 0.f;
+    return e;
+  }
+
+  bool WantsRefinement(const RowCut& cut) const {
+    if (cut.heap.empty()) return false;
+    const float bound = cut.heap.front().bound;
+    return bound > 0 && bound > float(error_) * std::max(0.f, cut.total.Luminance());
+  }
+
+  void GatherRows(const LightingMatrix& matrix, const LightTree& tree,
+                  const std::vector<EmissionBound>& emission, std::span<const uint32_t> rows,
+                  std::span<RGBAccum> sums, ChunkStats* stats) const {
+    const std::vector<Material>& materials = matrix.scene().materials();
+    const LightSet& lights = matrix.lights();
+    const float clamp2 = Sqr(matrix.clamp_distance());
+
+    // Receiver data for the bounds
+    std::vector<RowCut> cuts(rows.size());
+    for (size_t i = 0; i < rows.size(); ++i) {
+      const ShadingPoint& sp = matrix.receivers().points[rows[i]];
+      ReceiverBounds& r = cuts[i].receiver;
+      r.p = sp.p;
+      r.throughput = sp.throughput;
+      Vec3 wo_local = Frame(sp.ns).ToLocal(sp.wo);
+      r.n_front = wo_local.z < 0 ? -sp.ns : sp.ns;
+      r.mirror = sp.ns * (2 * Dot(sp.wo, sp.ns)) - sp.wo;
+      r.lobe = MaterialLobeBound(materials[sp.material], wo_local, TransportMode::kRadiance);
+    }
+
+    // New cut nodes of this step; those that need their representative's element are listed
+    // in (entry_rows, entry_cols) and filled after one batched evaluation.
+    struct Pending {
+      uint32_t cut;  // row within the chunk
+      CutNode node;
+      int32_t entry = -1;  // index into the batch, -1: value known (or not needed)
+    };
+    std::vector<Pending> pending;
+    std::vector<uint32_t> entry_rows, entry_cols;
+    std::vector<RGB> entry_values;
+    auto add = [&](uint32_t cut, uint32_t index, const CutNode* parent) {
+      const LightTreeNode& node = tree.node(index);
+      Pending p;
+      p.cut = cut;
+      p.node.node = index;
+      float bound = NodeBound(cuts[cut].receiver, node, emission[index], clamp2);
+      if (bound > 0) {
+        // Bound zero: nothing below reaches the receiver, the node is exactly zero.
+        p.node.bound = node.IsLeaf() ? 0.f : bound;
+        p.node.rep_known = true;
+        if (parent && parent->rep_known &&
+            tree.node(parent->node).representative == node.representative) {
+          p.node.rep_value = parent->rep_value;
+        } else {
+          p.entry = int32_t(entry_rows.size());
+          entry_rows.push_back(rows[cut]);
+          entry_cols.push_back(node.representative);
+        }
+      }
+      pending.push_back(p);
+    };
+    auto flush = [&] {
+      entry_values.resize(entry_rows.size());
+      matrix.EvaluateEntries(entry_rows, entry_cols, entry_values, &stats->counters);
+      for (Pending& p : pending) {
+        if (p.entry >= 0) p.node.rep_value = entry_values[size_t(p.entry)];
+        if (p.node.rep_known) {
+          const LightTreeNode& node = tree.node(p.node.node);
+          p.node.estimate = Scale(p.node.rep_value, node, lights.lights[node.representative]);
+        }
+        RowCut& cut = cuts[p.cut];
+        cut.total += p.node.estimate;
+        cut.heap.push_back({p.node.bound, p.node.node, uint32_t(cut.pool.size())});
+        cut.pool.push_back(p.node);
+        std::push_heap(cut.heap.begin(), cut.heap.end(), HeapLess);
+      }
+      pending.clear();
+      entry_rows.clear();
+      entry_cols.clear();
+    };
+
+    // The cut starts at the roots.
+    for (uint32_t c = 0; c < cuts.size(); ++c)
+      for (uint32_t root : tree.roots()) add(c, root, nullptr);
+    flush();
+    // Each step refines every unfinished row's worst node: the one with the largest bound,
+    // while it exceeds the relative error of the row's total (Walter 2005, Sec. 4.1).
+    for (;;) {
+      bool any = false;
+      for (uint32_t c = 0; c < cuts.size(); ++c) {
+        RowCut& cut = cuts[c];
+        if (cut.done) continue;
+        if (cut.heap.size() >= max_cut_ || !WantsRefinement(cut)) {
+          cut.done = true;
+          continue;
+        }
+        std::pop_heap(cut.heap.begin(), cut.heap.end(), HeapLess);
+        const CutNode parent = cut.pool[cut.heap.back().slot];
+        cut.heap.pop_back();
+        cut.total = cut.total - parent.estimate;
+        const LightTreeNode& node = tree.node(parent.node);
+        add(c, uint32_t(node.left), &parent);
+        add(c, uint32_t(node.right), &parent);
+        any = true;
+      }
+      if (!any) break;
+      flush();
+    }
+
+    for (size_t i = 0; i < cuts.size(); ++i) {
+      RowCut& cut = cuts[i];
+      stats->cut_size += double(cut.heap.size());
+      if (WantsRefinement(cut)) stats->capped += 1;
+      // The running total drifts by rounding: sum the final cut in double, in node order so
+      // the result does not depend on heap internals.
+      std::sort(cut.heap.begin(), cut.heap.end(),
+                [](const HeapEntry& a, const HeapEntry& b) { return a.node < b.node; });
+      RGBAccum sum;
+      for (const HeapEntry& e : cut.heap) sum.Add(cut.pool[e.slot].estimate);
+      sums[i] = sum;
+    }
+  }
+
+  // Emission bounds of the tree's nodes, computed once per tree.
+  std::shared_ptr<const std::vector<EmissionBound>> Emission(const GatherContext& ctx) const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    const LightTree* tree = ctx.tree;
+    if (!cached_ || cached_tree_ != tree || cached_lights_ != &ctx.matrix.lights() ||
+        cached_nodes_ != tree->nodes().size()) {
+      cached_ = std::make_shared<const std::vector<EmissionBound>>(
+          ComputeEmissionBounds(*tree, ctx.matrix.lights(), ctx.matrix.scene().materials()));
+      cached_tree_ = tree;
+      cached_lights_ = &ctx.matrix.lights();
+      cached_nodes_ = tree->nodes().size();
+    }
+    return cached_;
+  }
+
+  double error_;
+  size_t max_cut_;
+  mutable std::mutex mutex_;
+  mutable std::shared_ptr<const std::vector<EmissionBound>> cached_;
+  mutable const LightTree* cached_tree_ = nullptr;
+  mutable const LightSet* cached_lights_ = nullptr;
+  mutable size_t cached_nodes_ = 0;
+};
+
+}  // namespace
+
+std::unique_ptr<GatherMethod> CreateLightcutsGather(const OptionMap& params) {
+  double error = params.GetDouble("error", 0.02, 0.0, 1.0);
+  // error = 0 asks for the exact sum: no cap unless one is given.
+  const long long unlimited = std::numeric_limits<int32_t>::max();
+  size_t max_cut = size_t(params.GetInt("max_cut", error > 0 ? 1000 : unlimited, 1, unlimited));
+  return std::make_unique<LightcutsGather>(error, max_cut);
+}
+
+}  // namespace lightfarm

@@ -1,0 +1,92 @@
+#include "coordinator/blob_store.h"
+
+#include <unistd.h>
+
+#include <filesystem>
+#include <stdexcept>
+
+namespace lightfarm {
+
+namespace fs = std::filesystem;
+
+BlobStore::BlobStore(std::string dir, uint64_t max_blob_bytes)
+    : dir_(std::move(dir)), max_blob_bytes_(max_blob_bytes) {
+  fs::create_directories(dir_);
+  fs::create_directories(dir_ + "/tmp");
+  // Temporary files of a previous run are garbage.
+  std::error_code ec;
+  for (const auto& e : fs::directory_iterator(dir_ + "/tmp", ec)) fs::remove(e.path(), ec);
+}
+
+bool BlobStore::Has(const std::string& sha256) const {
+  return IsSha256Hex(sha256) && fs::exists(Path(sha256));
+}
+
+uint64_t BlobStore::Size(const std::string& sha256) const { return fs::file_size(Path(sha256)); }
+
+std::string BlobStore::TempPath() {
+  return dir_ + "/tmp/" + std::to_string(::getpid()) + "-" + std::to_string(temp_counter_++);
+}
+
+std::string BlobStore::Put(ByteView bytes) {
+  std::string sha = Sha256Hex(bytes);
+  if (Has(sha)) return sha;
+  std::string tmp = TempPath();
+  {
+    std::ofstream f(tmp, std::ios::binary);
+    f.write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size()));
+    f.flush();
+    if (!f) throw std::runtime_error("blob store: cannot write " + tmp);
+  }
+  fs::rename(tmp, Path(sha));
+  return sha;
+}
+
+Bytes BlobStore::Get(const std::string& sha256) const {
+  if (!Has(sha256)) throw std::out_of_range("blob " + sha256 + " not found");
+  std::ifstream f(Path(sha256), std::ios::binary);
+  Bytes data(fs::file_size(Path(sha256)));
+  f.read(reinterpret_cast<char*>(data.data()), std::streamsize(data.size()));
+  if (!f) throw std::runtime_error("blob store: cannot read " + sha256);
+  return data;
+}
+
+BlobStore::Upload::Upload(BlobStore* store, std::string expected_sha256, uint64_t expected_size)
+    : store_(store), sha_(std::move(expected_sha256)), expected_size_(expected_size) {
+  tmp_ = store_->TempPath();
+  out_.open(tmp_, std::ios::binary);
+  if (!out_) throw std::runtime_error("blob store: cannot write " + tmp_);
+}
+
+BlobStore::Upload::~Upload() {
+  if (!committed_) {
+    out_.close();
+    std::error_code ec;
+    fs::remove(tmp_, ec);
+  }
+}
+
+void BlobStore::Upload::Append(const std::string& data) {
+  size_ += data.size();
+  if (size_ > expected_size_)
+    throw std::length_error("blob " + sha_ + ": more data than the declared " +
+                            std::to_string(expected_size_) + " bytes");
+  hash_.Update(data.data(), data.size());
+  out_.write(data.data(), std::streamsize(data.size()));
+}
+
+void BlobStore::Upload::Commit() {
+  if (size_ != expected_size_)
+    throw std::invalid_argument("blob " + sha_ + ": received " + std::to_string(size_) +
+                                " bytes, declared " + std::to_string(expected_size_));
+  std::string got = hash_.HexDigest();
+  if (got != sha_)
+    throw std::invalid_argument("blob content hashes to " + got + ", not the declared " + sha_);
+  out_.flush();
+  out_.close();
+  if (!out_) throw std::runtime_error("blob store: cannot write " + tmp_);
+  fs::rename(tmp_, store_->Path(sha_));
+  committed_ = true;
+}
+
+}  // namespace lightfarm

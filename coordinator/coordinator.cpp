@@ -1,0 +1,779 @@
+#include "coordinator/coordinator.h"
+
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <sstream>
+
+#include "common/farm/proto_convert.h"
+#include "common/image/image_io.h"
+#include "common/util/error.h"
+
+namespace lightfarm {
+
+namespace fs = std::filesystem;
+using Code = FarmError::Code;
+
+namespace {
+
+double Seconds(std::chrono::steady_clock::duration d) {
+  return std::chrono::duration<double>(d).count();
+}
+
+// A manifest path must stay inside the scene directory once materialized.
+bool IsSafeRelativePath(const std::string& p) {
+  if (p.empty() || p.size() > 4096 || p[0] == '/' || p.find('\0') != std::string::npos) return false;
+  for (const auto& part : fs::path(p))
+    if (part == ".." || part == "." || part.empty()) return false;
+  return true;
+}
+
+std::string ReplaceAll(std::string s, const std::string& from, const std::string& to) {
+  if (from.empty()) return s;
+  for (size_t pos = 0; (pos = s.find(from, pos)) != std::string::npos; pos += to.size())
+    s.replace(pos, from.size(), to);
+  return s;
+}
+
+std::string RandomId() {
+  std::random_device rd;
+  std::ostringstream os;
+  os << std::hex << rd() << rd();
+  return os.str();
+}
+
+}  // namespace
+
+Coordinator::Coordinator(CoordinatorOptions options) : options_(std::move(options)) {
+  if (options_.state_dir.empty()) throw std::invalid_argument("coordinator: --state-dir is required");
+  fs::create_directories(options_.state_dir);
+  store_ = std::make_unique<JobStore>(options_.state_dir + "/state.sqlite");
+  blobs_ = std::make_unique<BlobStore>(options_.state_dir + "/blobs", options_.max_blob_bytes);
+}
+
+Coordinator::~Coordinator() { Stop(); }
+
+std::string Coordinator::SceneDir(int64_t id) const {
+  return options_.state_dir + "/jobs/" + std::to_string(id) + "/scene";
+}
+
+void Coordinator::Start() {
+  planner_ = std::make_unique<ThreadPool>(std::max(1, options_.planner_threads));
+  std::lock_guard lock(mu_);
+  for (const std::string& w : store_->LoadWorkerIds()) workers_.insert(w);
+  // Every unfinished job is planned again (deterministic) and continues at its stage; the
+  // tasks already done keep their results (JobStore), so none is recomputed.
+  for (JobRecord& r : store_->LoadJobs()) {
+    Job job;
+    job.id = r.id;
+    job.name = r.name;
+    job.priority = r.priority;
+    job.state = v1::JobState(r.state);
+    job.manifest.ParseFromString(r.manifest);
+    job.settings.ParseFromString(r.settings);
+    job.stage = r.stage;
+    job.error = r.error;
+    job.result_sha = r.result_sha;
+    job.stats_json = r.stats_json;
+    if (!IsTerminal(job.state)) {
+      if (job.state != v1::JOB_STATE_QUEUED)
+        spdlog::info("job {}: resuming at stage {}", job.id, job.stage);
+      job.state = v1::JOB_STATE_QUEUED;
+    }
+    jobs_.emplace(job.id, std::move(job));
+  }
+  MaybeStartPlanningLocked();
+  ticker_ = std::thread([this] { TickLoop(); });
+}
+
+void Coordinator::Stop() {
+  {
+    std::lock_guard lock(mu_);
+    if (stopping_) return;
+    stopping_ = true;
+  }
+  tick_cv_.notify_all();
+  if (ticker_.joinable()) ticker_.join();
+  if (planner_) planner_->Stop();
+}
+
+// --- client API ---------------------------------------------------------------------------------
+
+std::vector<std::string> Coordinator::FindMissingBlobs(const std::vector<std::string>& hashes) const {
+  std::vector<std::string> missing;
+  for (const std::string& h : hashes) {
+    if (!IsSha256Hex(h)) throw FarmError(Code::kInvalidArgument, "not a SHA-256 hex digest: \"" + h.substr(0, 80) + "\"");
+    if (!blobs_->Has(h)) missing.push_back(h);
+  }
+  return missing;
+}
+
+std::string Coordinator::Submit(const v1::SubmitJobRequest& req) {
+  if (draining_) throw FarmError(Code::kUnavailable, "coordinator is shutting down; submit again later");
+  // Validate the manifest: every file uploaded, every path inside the scene directory.
+  const v1::SceneManifest& m = req.scene();
+  if (m.files_size() == 0) throw FarmError(Code::kInvalidArgument, "the scene manifest lists no files");
+  if (m.files_size() > 100000) throw FarmError(Code::kResourceExhausted, "the scene manifest lists too many files");
+  bool has_root = false;
+  std::set<std::string> paths;
+  for (const v1::SceneFile& f : m.files()) {
+    if (!IsSafeRelativePath(f.path()))
+      throw FarmError(Code::kInvalidArgument, "scene file path \"" + f.path().substr(0, 200) +
+                                                  "\" must be relative and must not contain \"..\"");
+    if (!paths.insert(f.path()).second)
+      throw FarmError(Code::kInvalidArgument, "scene file \"" + f.path() + "\" is listed twice");
+    if (!IsSha256Hex(f.sha256()))
+      throw FarmError(Code::kInvalidArgument, "scene file \"" + f.path() + "\" has no valid SHA-256");
+    if (!blobs_->Has(f.sha256()))
+      throw FarmError(Code::kFailedPrecondition, "scene file \"" + f.path() + "\" (blob " + f.sha256() +
+                                                     ") was not uploaded");
+    has_root |= f.path() == m.root();
+  }
+  if (!has_root) throw FarmError(Code::kInvalidArgument, "the scene root \"" + m.root() + "\" is not among its files");
+  // Settings: malformed values are INVALID_ARGUMENT, configured limits RESOURCE_EXHAUSTED.
+  const v1::RenderSettings& s = req.settings();
+  if (s.width() < 0 || s.height() < 0 || s.spp() < 0)
+    throw FarmError(Code::kInvalidArgument, "resolution and spp must not be negative");
+  if (s.width() > options_.max_resolution || s.height() > options_.max_resolution)
+    throw FarmError(Code::kResourceExhausted, "resolution " + std::to_string(s.width()) + "x" + std::to_string(s.height()) +
+                                                  " exceeds this coordinator's limit of " +
+                                                  std::to_string(options_.max_resolution) + " per axis");
+  if (s.lights() > options_.max_lights)
+    throw FarmError(Code::kResourceExhausted, std::to_string(s.lights()) + " lights exceed this coordinator's limit of " +
+                                                  std::to_string(options_.max_lights));
+  if (s.spp() > options_.max_spp)
+    throw FarmError(Code::kResourceExhausted, "spp " + std::to_string(s.spp()) + " exceeds the limit of " +
+                                                  std::to_string(options_.max_spp));
+  try {
+    CreateGatherMethod(FromProto(s).method, OptionMap::Parse(FromProto(s).params));
+  } catch (const OptionError& e) {
+    throw FarmError(Code::kInvalidArgument, e.what());
+  }
+
+  std::lock_guard lock(mu_);
+  int unfinished = 0;
+  for (const auto& [id, j] : jobs_) unfinished += !IsTerminal(j.state);
+  if (unfinished >= options_.max_queued_jobs)
+    throw FarmError(Code::kResourceExhausted, "the queue is full (" + std::to_string(unfinished) +
+                                                  " unfinished jobs; limit --max-queued-jobs)");
+  JobRecord r;
+  r.name = req.name();
+  r.priority = req.priority();
+  r.state = v1::JOB_STATE_QUEUED;
+  r.manifest = m.SerializeAsString();
+  r.settings = s.SerializeAsString();
+  Job job;
+  job.id = store_->InsertJob(r);
+  job.name = req.name();
+  job.priority = req.priority();
+  job.manifest = m;
+  job.settings = s;
+  const int64_t id = job.id;
+  jobs_.emplace(id, std::move(job));
+  ++m_submitted_;
+  spdlog::info("job {}: submitted ({}, {} files)", id, s.method(), m.files_size());
+  MaybeStartPlanningLocked();
+  return std::to_string(id);
+}
+
+Coordinator::Job& Coordinator::FindJob(const std::string& job_id) {
+  int64_t id = 0;
+  try {
+    size_t used = 0;
+    id = std::stoll(job_id, &used);
+    if (used != job_id.size()) throw std::invalid_argument(job_id);
+  } catch (const std::exception&) {
+    throw FarmError(Code::kInvalidArgument, "job id \"" + job_id.substr(0, 80) + "\" is not a number");
+  }
+  auto it = jobs_.find(id);
+  if (it == jobs_.end()) throw FarmError(Code::kNotFound, "no job " + job_id);
+  return it->second;
+}
+
+v1::JobStatus Coordinator::StatusLocked(const Job& job) const {
+  v1::JobStatus st;
+  st.set_job_id(std::to_string(job.id));
+  st.set_state(job.state);
+  st.set_name(job.name);
+  st.set_priority(job.priority);
+  st.set_method(job.settings.method());
+  st.set_stage(job.stage);
+  st.set_stage_count(job.stage_count);
+  st.set_stage_name(job.stage_name);
+  st.set_tasks_done(job.tasks_done);
+  st.set_tasks_total(job.tasks.size());
+  st.set_error(job.error);
+  st.set_attempts(job.attempts_total);
+  st.set_tasks_completed_total(job.completions_total);
+  st.set_eta_s(-1);
+  if (job.state == v1::JOB_STATE_RUNNING || job.state == v1::JOB_STATE_PLANNING) {
+    const auto now = Clock::now();
+    st.set_elapsed_s(Seconds(now - job.started));
+    const size_t done_here = job.tasks_done - std::min(job.tasks_done, job.done_at_stage_start);
+    if (job.state == v1::JOB_STATE_RUNNING && done_here > 0 && job.stage + 1 == job.stage_count) {
+      const double per_task = Seconds(now - job.stage_started) / double(done_here);
+      st.set_eta_s(per_task * double(job.tasks.size() - job.tasks_done));
+    }
+  } else if (job.state == v1::JOB_STATE_DONE) {
+    st.set_eta_s(0);
+  }
+  return st;
+}
+
+v1::JobStatus Coordinator::GetJob(const std::string& job_id) {
+  std::lock_guard lock(mu_);
+  return StatusLocked(FindJob(job_id));
+}
+
+std::vector<v1::JobStatus> Coordinator::ListJobs() {
+  std::lock_guard lock(mu_);
+  std::vector<v1::JobStatus> out;
+  for (const auto& [id, job] : jobs_) out.push_back(StatusLocked(job));
+  return out;
+}
+
+v1::JobStatus Coordinator::Cancel(const std::string& job_id) {
+  std::lock_guard lock(mu_);
+  Job& job = FindJob(job_id);
+  if (!IsTerminal(job.state)) {
+    job.state = v1::JOB_STATE_CANCELLED;
+    job.error = "cancelled";
+    job.plan.reset();
+    store_->SetJobState(job.id, job.state, job.error);
+    spdlog::info("job {}: cancelled", job.id);
+    MaybeStartPlanningLocked();
+  }
+  return StatusLocked(job);
+}
+
+JobResult Coordinator::GetResult(const std::string& job_id) {
+  std::lock_guard lock(mu_);
+  Job& job = FindJob(job_id);
+  if (job.state != v1::JOB_STATE_DONE)
+    throw FarmError(Code::kFailedPrecondition, "job " + job_id + " is " + JobStateName(job.state) +
+                                                   (job.error.empty() ? "" : " (" + job.error + ")") +
+                                                   ", not done");
+  if (!blobs_->Has(job.result_sha))
+    throw FarmError(Code::kNotFound, "the result image of job " + job_id + " is missing from the blob store");
+  return JobResult{job.stats_json, blobs_->Path(job.result_sha)};
+}
+
+// --- worker API ---------------------------------------------------------------------------------
+
+std::string Coordinator::RegisterWorker(const std::string& name, uint32_t protocol_version,
+                                        const std::string& software_version) {
+  if (protocol_version != kWorkerProtocolVersion)
+    throw FarmError(Code::kFailedPrecondition,
+                    "worker \"" + name + "\" speaks worker protocol " + std::to_string(protocol_version) +
+                        " (lightfarm " + software_version + "), this coordinator speaks protocol " +
+                        std::to_string(kWorkerProtocolVersion) + " (lightfarm " LIGHTFARM_VERSION
+                        "): upgrade the worker to the coordinator's version");
+  std::string id = "w-" + RandomId();
+  store_->UpsertWorker(id, name, software_version);
+  std::lock_guard lock(mu_);
+  workers_.insert(id);
+  spdlog::info("worker {} registered as {}", name, id);
+  return id;
+}
+
+bool Coordinator::ParseLease(const std::string& lease_id, LeaseRef* ref) {
+  // "<job>.<stage>.<task>.<attempt>"
+  unsigned long long job = 0, attempt = 0;
+  int stage = 0;
+  unsigned task = 0;
+  char tail = 0;
+  if (std::sscanf(lease_id.c_str(), "%llu.%d.%u.%llu%c", &job, &stage, &task, &attempt, &tail) != 4)
+    return false;
+  *ref = LeaseRef{int64_t(job), stage, task};
+  return true;
+}
+
+Coordinator::Task* Coordinator::FindTaskLocked(const LeaseRef& ref, Job** job_out) {
+  auto it = jobs_.find(ref.job);
+  if (it == jobs_.end()) return nullptr;
+  Job& job = it->second;
+  *job_out = &job;
+  if (job.state != v1::JOB_STATE_RUNNING || job.stage != ref.stage || ref.task >= job.tasks.size())
+    return nullptr;
+  return &job.tasks[ref.task];
+}
+
+LeaseGrant Coordinator::Lease(const std::string& worker_id) {
+  ++m_lease_polls_;
+  std::lock_guard lock(mu_);
+  if (!workers_.count(worker_id))
+    throw FarmError(Code::kNotFound, "unknown worker " + worker_id + "; register again");
+  LeaseGrant grant;
+  if (draining_ || stopping_) return grant;
+  // Highest priority first, then the oldest job; within a job the lowest task id.
+  Job* best = nullptr;
+  size_t best_task = 0;
+  for (auto& [id, job] : jobs_) {
+    if (job.state != v1::JOB_STATE_RUNNING || job.advancing) continue;
+    if (best && job.priority <= best->priority) continue;
+    auto wf = job.worker_failures.find(worker_id);
+    if (wf != job.worker_failures.end() && wf->second >= options_.max_attempts) continue;
+    for (size_t t = 0; t < job.tasks.size(); ++t)
+      if (job.tasks[t].state == TaskStateCode::kPending) {
+        best = &job;
+        best_task = t;
+        break;
+      }
+  }
+  if (!best) return grant;
+  Job& job = *best;
+  Task& task = job.tasks[best_task];
+  task.state = TaskStateCode::kLeased;
+  task.worker = worker_id;
+  task.expiry = Clock::now() + std::chrono::milliseconds(lease_timeout_ms());
+  ++task.attempts;
+  ++job.attempts_total;
+  task.attempt_row = store_->BeginAttempt(job.id, job.stage, int(best_task), worker_id);
+  store_->UpdateTask(job.id, TaskRecord{job.stage, int(best_task), int(task.state), task.attempts,
+                                        task.failures, task.result_sha, task.last_error});
+  ++m_leases_;
+  grant.has_task = true;
+  grant.lease_id = std::to_string(job.id) + "." + std::to_string(job.stage) + "." +
+                   std::to_string(best_task) + "." + std::to_string(task.attempt_row);
+  v1::JobContext& ctx = grant.job;
+  ctx.set_job_id(std::to_string(job.id));
+  *ctx.mutable_scene() = job.manifest;
+  *ctx.mutable_settings() = job.settings;
+  ctx.set_clamp(job.clamp);
+  ctx.set_lights_sha256(job.lights_sha);
+  ctx.set_receivers_sha256(job.receivers_sha);
+  grant.task = task.spec;
+  grant.artifact_sha = job.artifact_sha;
+  return grant;
+}
+
+bool Coordinator::Heartbeat(const std::string& worker_id, const std::string& lease_id) {
+  LeaseRef ref;
+  if (!ParseLease(lease_id, &ref)) throw FarmError(Code::kInvalidArgument, "malformed lease id");
+  std::lock_guard lock(mu_);
+  Job* job = nullptr;
+  Task* task = FindTaskLocked(ref, &job);
+  if (!task || task->state == TaskStateCode::kDone) return false;
+  if (task->state == TaskStateCode::kLeased && task->worker != worker_id) return false;
+  // Pending (the lease expired, or the coordinator restarted): the worker keeps it.
+  task->state = TaskStateCode::kLeased;
+  task->worker = worker_id;
+  task->expiry = Clock::now() + std::chrono::milliseconds(lease_timeout_ms());
+  return true;
+}
+
+bool Coordinator::Complete(const std::string& worker_id, const std::string& lease_id,
+                           const Bytes& bytes) {
+  LeaseRef ref;
+  if (!ParseLease(lease_id, &ref)) throw FarmError(Code::kInvalidArgument, "malformed lease id");
+  size_t expected_rows = 0;
+  bool final_stage = false;
+  {
+    std::lock_guard lock(mu_);
+    Job* job = nullptr;
+    Task* task = FindTaskLocked(ref, &job);
+    if (!task || task->state == TaskStateCode::kDone) {
+      ++m_duplicates_;
+      return false;  // a duplicate or stale completion: harmless
+    }
+    expected_rows = task->rows;
+    final_stage = job->stage + 1 == job->stage_count;
+  }
+  // Validate outside the lock; a malformed result is the task's failure, not the coordinator's.
+  std::string problem;
+  try {
+    TaskOutput out = DeserializeTaskOutput(bytes);
+    if (final_stage && out.row_sums.size() != expected_rows)
+      problem = "result has " + std::to_string(out.row_sums.size()) + " rows, the task has " +
+                std::to_string(expected_rows);
+  } catch (const SerializeError& e) {
+    problem = std::string("malformed result: ") + e.what();
+  }
+  std::string sha;
+  if (problem.empty()) sha = blobs_->Put(bytes);
+
+  std::lock_guard lock(mu_);
+  Job* job = nullptr;
+  Task* task = FindTaskLocked(ref, &job);
+  if (!task || task->state == TaskStateCode::kDone) {
+    ++m_duplicates_;
+    return false;
+  }
+  if (!problem.empty()) {
+    RecordFailureLocked(*job, ref.task, worker_id, problem);
+    throw FarmError(Code::kInvalidArgument, problem);
+  }
+  task->state = TaskStateCode::kDone;
+  task->result_sha = sha;
+  task->worker = worker_id;
+  store_->UpdateTask(job->id, TaskRecord{job->stage, int(ref.task), int(task->state), task->attempts,
+                                         task->failures, sha, task->last_error});
+  if (task->attempt_row) store_->EndAttempt(task->attempt_row, "done");
+  ++job->tasks_done;
+  ++job->completions_total;
+  ++m_completed_;
+  if (job->tasks_done == job->tasks.size() && !job->advancing) {
+    job->advancing = true;
+    const int64_t id = job->id;
+    planner_->Submit([this, id] { AdvanceStage(id); });
+  }
+  return true;
+}
+
+void Coordinator::Fail(const std::string& worker_id, const std::string& lease_id,
+                       const std::string& reason, bool hand_back) {
+  LeaseRef ref;
+  if (!ParseLease(lease_id, &ref)) throw FarmError(Code::kInvalidArgument, "malformed lease id");
+  std::lock_guard lock(mu_);
+  Job* job = nullptr;
+  Task* task = FindTaskLocked(ref, &job);
+  if (!task || task->state != TaskStateCode::kLeased || task->worker != worker_id) return;
+  if (hand_back) {
+    task->state = TaskStateCode::kPending;
+    if (task->attempt_row) store_->EndAttempt(task->attempt_row, "handed back: " + reason);
+    return;
+  }
+  RecordFailureLocked(*job, ref.task, worker_id, reason);
+}
+
+void Coordinator::RecordFailureLocked(Job& job, uint32_t task_id, const std::string& worker,
+                                      const std::string& reason) {
+  Task& task = job.tasks[task_id];
+  ++m_failed_;
+  ++task.failures;
+  task.last_error = reason;
+  task.state = TaskStateCode::kPending;
+  if (task.attempt_row) store_->EndAttempt(task.attempt_row, "failed: " + reason);
+  store_->UpdateTask(job.id, TaskRecord{job.stage, int(task_id), int(task.state), task.attempts,
+                                        task.failures, task.result_sha, task.last_error});
+  if (++job.worker_failures[worker] == options_.max_attempts)
+    spdlog::warn("job {}: worker {} failed {} tasks and is kept off this job", job.id, worker,
+                 options_.max_attempts);
+  spdlog::warn("job {}: task {} of stage {} failed on {}: {}", job.id, task_id, job.stage, worker, reason);
+  if (task.failures >= options_.max_attempts)
+    FailJobLocked(job, "task " + std::to_string(task_id) + " of stage " + std::to_string(job.stage) +
+                           " (" + job.stage_name + ") failed " + std::to_string(task.failures) +
+                           " times; last error: " + reason);
+}
+
+void Coordinator::FailJobLocked(Job& job, const std::string& error) {
+  job.state = v1::JOB_STATE_FAILED;
+  job.error = error;
+  job.plan.reset();
+  store_->SetJobState(job.id, job.state, error);
+  spdlog::warn("job {}: failed: {}", job.id, error);
+  MaybeStartPlanningLocked();
+}
+
+// --- planning and stages --------------------------------------------------------------------------
+
+void Coordinator::MaybeStartPlanningLocked() {
+  if (stopping_) return;
+  int active = 0;
+  for (const auto& [id, j] : jobs_)
+    active += j.state == v1::JOB_STATE_PLANNING || j.state == v1::JOB_STATE_RUNNING;
+  while (active < options_.max_active_jobs) {
+    Job* next = nullptr;
+    for (auto& [id, j] : jobs_)
+      if (j.state == v1::JOB_STATE_QUEUED && (!next || j.priority > next->priority)) next = &j;
+    if (!next) return;
+    next->state = v1::JOB_STATE_PLANNING;
+    next->started = Clock::now();
+    store_->SetJobState(next->id, next->state, "");
+    const int64_t id = next->id;
+    planner_->Submit([this, id] { PlanJob(id); });
+    ++active;
+  }
+}
+
+void Coordinator::PlanJob(int64_t id) {
+  v1::SceneManifest manifest;
+  v1::RenderSettings settings_proto;
+  int stage = 0;
+  {
+    std::lock_guard lock(mu_);
+    Job& job = jobs_.at(id);
+    if (job.state != v1::JOB_STATE_PLANNING) return;  // cancelled meanwhile
+    manifest = job.manifest;
+    settings_proto = job.settings;
+    stage = job.stage;
+  }
+  const std::string dir = SceneDir(id);
+  auto plan = std::make_shared<Plan>();
+  PhaseTimes times;
+  std::vector<Task> tasks;
+  std::string lights_sha, receivers_sha, artifact_sha;
+  std::vector<TaskRecord> records;
+  try {
+    // Materialize the scene files in their relative layout, then plan as `render` would.
+    std::error_code ec;
+    fs::remove_all(dir, ec);
+    for (const v1::SceneFile& f : manifest.files()) {
+      fs::path target = fs::path(dir) / f.path();
+      fs::create_directories(target.parent_path());
+      fs::copy_file(blobs_->Path(f.sha256()), target, fs::copy_options::overwrite_existing);
+    }
+    const RenderSettings settings = FromProto(settings_proto);
+    try {
+      *plan = BuildPlan(dir + "/" + manifest.root(), settings, &times);
+    } catch (const SceneError& e) {
+      // Name the file as the user knows it: relative to the scene's directory.
+      throw std::runtime_error(ReplaceAll(e.what(), dir + "/", ""));
+    }
+    if (plan->receivers.width > options_.max_resolution || plan->receivers.height > options_.max_resolution)
+      throw std::runtime_error("the scene's resolution " + std::to_string(plan->receivers.width) + "x" +
+                               std::to_string(plan->receivers.height) + " exceeds the limit of " +
+                               std::to_string(options_.max_resolution) + " per axis");
+    lights_sha = blobs_->Put(SerializeLightSet(plan->lights));
+    receivers_sha = blobs_->Put(SerializeReceiverSet(plan->receivers));
+    // The stage to (re)start: its input artifact is the previous stage's.
+    StageArtifact artifact;
+    if (stage > 0) {
+      auto artifacts = store_->Artifacts(id);
+      if (!artifacts.count(stage - 1)) throw std::runtime_error("artifact of stage " + std::to_string(stage - 1) + " is missing");
+      artifact_sha = artifacts.at(stage - 1);
+      artifact = blobs_->Get(artifact_sha);
+    }
+    std::vector<SubMatrixTask> specs = plan->method->PlanStage(stage, plan->context(), plan->tasks, artifact);
+    store_->InsertTasks(id, stage, int(specs.size()));
+    records = store_->LoadTasks(id, stage);
+    for (const SubMatrixTask& s : specs) {
+      Task t;
+      t.spec = SerializeTask(s);
+      t.rows = s.rows.size();
+      tasks.push_back(std::move(t));
+    }
+    for (const TaskRecord& r : records) {
+      if (r.task_id < 0 || size_t(r.task_id) >= tasks.size()) continue;
+      Task& t = tasks[size_t(r.task_id)];
+      t.attempts = r.attempts;
+      t.failures = r.failures;
+      t.last_error = r.last_error;
+      if (r.state == int(TaskStateCode::kDone) && blobs_->Has(r.result_sha)) {
+        t.state = TaskStateCode::kDone;
+        t.result_sha = r.result_sha;
+      }
+    }
+  } catch (const std::exception& e) {
+    std::lock_guard lock(mu_);
+    Job& job = jobs_.at(id);
+    if (job.state == v1::JOB_STATE_PLANNING) FailJobLocked(job, e.what());
+    return;
+  }
+
+  std::lock_guard lock(mu_);
+  Job& job = jobs_.at(id);
+  if (job.state != v1::JOB_STATE_PLANNING) return;
+  job.plan = plan;
+  job.times = times;
+  job.lights_sha = lights_sha;
+  job.receivers_sha = receivers_sha;
+  job.artifact_sha = artifact_sha;
+  job.clamp = plan->matrix_options.clamp;
+  job.stage_count = plan->method->stage_count();
+  job.stage_name = plan->method->stage_name(stage);
+  job.tasks = std::move(tasks);
+  job.tasks_done = 0;
+  for (const Task& t : job.tasks) job.tasks_done += t.state == TaskStateCode::kDone;
+  job.done_at_stage_start = job.tasks_done;
+  job.stage_started = Clock::now();
+  for (const TaskRecord& r : store_->LoadAllTasks(id)) job.attempts_total += uint64_t(r.attempts);
+  job.state = v1::JOB_STATE_RUNNING;
+  store_->SetJobState(id, job.state, "");
+  spdlog::info("job {}: stage {} ({}) has {} tasks, {} done", id, stage, job.stage_name,
+               job.tasks.size(), job.tasks_done);
+  if (job.tasks_done == job.tasks.size()) {
+    job.advancing = true;
+    planner_->Submit([this, id] { AdvanceStage(id); });
+  }
+}
+
+void Coordinator::AdvanceStage(int64_t id) {
+  std::shared_ptr<Plan> plan;
+  int stage = 0;
+  std::vector<std::string> results;
+  {
+    std::lock_guard lock(mu_);
+    Job& job = jobs_.at(id);
+    if (job.state != v1::JOB_STATE_RUNNING || !job.plan) return;
+    plan = job.plan;
+    stage = job.stage;
+    for (const Task& t : job.tasks) results.push_back(t.result_sha);
+    job.times.Add(job.stage_name, Seconds(Clock::now() - job.stage_started));
+  }
+  const GatherMethod& method = *plan->method;
+  try {
+    if (stage + 1 >= method.stage_count()) {
+      FinishJob(id, plan, stage);
+      return;
+    }
+    // Combine this stage's payloads into the next stage's input (Hašan 2007: sample rows →
+    // cluster → accumulate columns), as RunStagesLocally does.
+    std::vector<TaskOutput> outputs;
+    for (const std::string& sha : results) outputs.push_back(DeserializeTaskOutput(blobs_->Get(sha)));
+    StageArtifact artifact = method.Combine(stage, plan->context(), outputs);
+    std::string artifact_sha = blobs_->Put(artifact);
+    store_->SetArtifact(id, stage, artifact_sha);
+    std::vector<SubMatrixTask> specs = method.PlanStage(stage + 1, plan->context(), plan->tasks, artifact);
+    store_->InsertTasks(id, stage + 1, int(specs.size()));
+    store_->SetJobStage(id, stage + 1);
+    std::lock_guard lock(mu_);
+    Job& job = jobs_.at(id);
+    if (job.state != v1::JOB_STATE_RUNNING) return;
+    job.stage = stage + 1;
+    job.stage_name = method.stage_name(job.stage);
+    job.artifact_sha = artifact_sha;
+    job.tasks.clear();
+    for (const SubMatrixTask& s : specs) {
+      Task t;
+      t.spec = SerializeTask(s);
+      t.rows = s.rows.size();
+      job.tasks.push_back(std::move(t));
+    }
+    job.tasks_done = 0;
+    job.done_at_stage_start = 0;
+    job.stage_started = Clock::now();
+    job.advancing = false;
+    if (job.tasks.empty()) {
+      job.advancing = true;
+      planner_->Submit([this, id] { AdvanceStage(id); });
+    }
+  } catch (const std::exception& e) {
+    std::lock_guard lock(mu_);
+    Job& job = jobs_.at(id);
+    if (!IsTerminal(job.state)) FailJobLocked(job, std::string("stage ") + std::to_string(stage) + ": " + e.what());
+  }
+}
+
+void Coordinator::FinishJob(int64_t id, std::shared_ptr<Plan> plan, int final_stage) {
+  std::vector<Bytes> specs;
+  PhaseTimes times;
+  Clock::time_point started;
+  v1::RenderSettings settings_proto;
+  std::string root;
+  {
+    std::lock_guard lock(mu_);
+    Job& job = jobs_.at(id);
+    for (const Task& t : job.tasks) specs.push_back(t.spec);
+    times = job.times;
+    started = job.started;
+    settings_proto = job.settings;
+    root = job.manifest.root();
+  }
+  const auto t_film = Clock::now();
+  // Sum every stage's outputs in (stage, task) order, exactly as RunStagesLocally does, so the
+  // image and the counters are those of the embedded path.
+  GatherOutcome outcome;
+  outcome.row_sums.resize(plan->matrix->rows());
+  std::vector<uint8_t> covered(plan->matrix->rows(), 0);
+  uint64_t attempts = 0, tasks_recorded = 0;
+  for (const TaskRecord& r : store_->LoadAllTasks(id)) {
+    attempts += uint64_t(r.attempts);
+    ++tasks_recorded;
+    if (r.state != int(TaskStateCode::kDone)) throw std::runtime_error("task " + std::to_string(r.task_id) + " has no result");
+    TaskOutput out = DeserializeTaskOutput(blobs_->Get(r.result_sha));
+    outcome.counters.Add(out.counters);
+    for (const auto& [k, v] : out.stats) outcome.method_stats[k] += v;
+    ++outcome.tasks;
+    if (r.stage != final_stage) continue;
+    SubMatrixTask spec = DeserializeTask(specs.at(size_t(r.task_id)));
+    if (out.row_sums.size() != spec.rows.size()) throw std::runtime_error("task returned a wrong number of rows");
+    for (size_t i = 0; i < spec.rows.size(); ++i) {
+      if (spec.rows[i] >= covered.size() || covered[spec.rows[i]]++) throw std::runtime_error("row gathered twice");
+      outcome.row_sums[spec.rows[i]] = out.row_sums[i];
+    }
+  }
+  uint64_t nan_samples = 0;
+  Image image = AssembleImage(*plan, outcome.row_sums, &nan_samples);
+  const std::string exr = options_.state_dir + "/jobs/" + std::to_string(id) + "/result.exr";
+  WriteEXR(exr, image);
+  std::ifstream f(exr, std::ios::binary);
+  Bytes bytes((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  const std::string result_sha = blobs_->Put(bytes);
+  times.Add("film", Seconds(Clock::now() - t_film));
+  nlohmann::json stats = MakeStats(*plan, FromProto(settings_proto), outcome, nan_samples, times,
+                                   Seconds(Clock::now() - started));
+  stats["scene"] = root;
+  stats["farm"] = {{"job_id", std::to_string(id)}, {"attempts", attempts}, {"tasks", tasks_recorded}};
+  const std::string stats_json = stats.dump(2);
+  store_->FinishJob(id, v1::JOB_STATE_DONE, result_sha, stats_json);
+  std::error_code ec;
+  fs::remove_all(SceneDir(id), ec);
+
+  std::lock_guard lock(mu_);
+  Job& job = jobs_.at(id);
+  job.state = v1::JOB_STATE_DONE;
+  job.result_sha = result_sha;
+  job.stats_json = stats_json;
+  job.plan.reset();
+  job.advancing = false;
+  spdlog::info("job {}: done ({} tasks, {} attempts)", id, tasks_recorded, attempts);
+  MaybeStartPlanningLocked();
+}
+
+void Coordinator::TickLoop() {
+  const auto period = std::chrono::milliseconds(
+      std::clamp<int64_t>(int64_t(options_.lease_timeout_s * 1000.0 / 10.0), 10, 1000));
+  std::unique_lock lock(mu_);
+  while (!stopping_) {
+    tick_cv_.wait_for(lock, period);
+    if (stopping_) break;
+    // Expired leases: the worker died or hangs; the task goes back to the queue.
+    const auto now = Clock::now();
+    for (auto& [id, job] : jobs_) {
+      if (job.state != v1::JOB_STATE_RUNNING) continue;
+      for (size_t t = 0; t < job.tasks.size() && job.state == v1::JOB_STATE_RUNNING; ++t) {
+        Task& task = job.tasks[t];
+        if (task.state == TaskStateCode::kLeased && task.expiry < now) {
+          ++m_expired_;
+          RecordFailureLocked(job, uint32_t(t), task.worker,
+                              "lease expired: worker " + task.worker + " stopped heartbeating");
+        }
+      }
+    }
+  }
+}
+
+std::string Coordinator::MetricsText() {
+  std::map<std::string, int> states;
+  uint64_t pending = 0, leased = 0;
+  size_t workers = 0;
+  {
+    std::lock_guard lock(mu_);
+    for (const auto& [id, job] : jobs_) {
+      ++states[JobStateName(job.state)];
+      if (job.state != v1::JOB_STATE_RUNNING) continue;
+      for (const Task& t : job.tasks) {
+        pending += t.state == TaskStateCode::kPending;
+        leased += t.state == TaskStateCode::kLeased;
+      }
+    }
+    workers = workers_.size();
+  }
+  std::ostringstream os;
+  os << "# HELP lightfarm_jobs Jobs by state.\n# TYPE lightfarm_jobs gauge\n";
+  for (const char* s : {"queued", "planning", "running", "done", "failed", "cancelled"})
+    os << "lightfarm_jobs{state=\"" << s << "\"} " << states[s] << "\n";
+  auto counter = [&](const char* name, const char* help, uint64_t v) {
+    os << "# HELP " << name << " " << help << "\n# TYPE " << name << " counter\n" << name << " " << v << "\n";
+  };
+  auto gauge = [&](const char* name, const char* help, uint64_t v) {
+    os << "# HELP " << name << " " << help << "\n# TYPE " << name << " gauge\n" << name << " " << v << "\n";
+  };
+  gauge("lightfarm_tasks_pending", "Tasks of running jobs waiting for a worker.", pending);
+  gauge("lightfarm_tasks_leased", "Tasks leased to workers.", leased);
+  gauge("lightfarm_workers_registered", "Workers registered since the state directory was created.", workers);
+  counter("lightfarm_jobs_submitted_total", "Jobs accepted.", m_submitted_);
+  counter("lightfarm_leases_total", "Task leases granted.", m_leases_);
+  counter("lightfarm_lease_polls_total", "LeaseTask calls.", m_lease_polls_);
+  counter("lightfarm_tasks_completed_total", "Task results accepted.", m_completed_);
+  counter("lightfarm_tasks_duplicate_total", "Duplicate or stale task results ignored.", m_duplicates_);
+  counter("lightfarm_task_failures_total", "Failed task attempts (including expired leases).", m_failed_);
+  counter("lightfarm_leases_expired_total", "Leases that expired without a heartbeat.", m_expired_);
+  return os.str();
+}
+
+}  // namespace lightfarm

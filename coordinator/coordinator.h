@@ -1,0 +1,181 @@
+// The coordinator's core, without gRPC: jobs and their stage graphs, the task queue with leases,
+// planning and stage combination on the coordinator (oneTBB inside BuildPlan / Combine), film
+// assembly, and the durable state (JobStore + BlobStore) a restarted coordinator resumes from.
+// The gRPC services (services.h) translate requests to these calls and FarmError to statuses.
+#pragma once
+
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <set>
+#include <stdexcept>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "common/farm/render_job.h"
+#include "common/farm/serialize.h"
+#include "coordinator/blob_store.h"
+#include "coordinator/job_store.h"
+#include "coordinator/thread_pool.h"
+#include "lightfarm/v1/render.pb.h"
+#include "lightfarm/v1/worker.pb.h"
+
+namespace lightfarm {
+
+// Workers and coordinator must speak the same worker protocol and task encodings.
+inline constexpr uint32_t kWorkerProtocolVersion = 1;
+
+struct CoordinatorOptions {
+  std::string state_dir;
+  double lease_timeout_s = 30;       // a task whose worker stops heartbeating is re-queued
+  int max_attempts = 3;              // K: a task fails after K failed attempts; a worker
+                                     // that failed K tasks of a job is kept off it
+  uint64_t max_blob_bytes = 1ull << 30;
+  uint64_t max_result_bytes = 1ull << 31;
+  int max_resolution = 16384;        // per axis
+  uint64_t max_lights = 50'000'000;
+  int max_spp = 4096;
+  int max_active_jobs = 2;           // jobs planning or running at once
+  int max_queued_jobs = 1000;        // unfinished jobs accepted
+  int planner_threads = 1;
+};
+
+class FarmError : public std::runtime_error {
+ public:
+  enum class Code { kInvalidArgument, kNotFound, kResourceExhausted, kFailedPrecondition, kUnavailable };
+  FarmError(Code code, const std::string& message) : std::runtime_error(message), code_(code) {}
+  Code code() const { return code_; }
+
+ private:
+  Code code_;
+};
+
+struct LeaseGrant {
+  bool has_task = false;
+  std::string lease_id;
+  v1::JobContext job;
+  Bytes task;
+  std::string artifact_sha;
+};
+
+struct JobResult {
+  std::string stats_json;
+  std::string exr_path;
+};
+
+class Coordinator {
+ public:
+  explicit Coordinator(CoordinatorOptions options);
+  ~Coordinator();
+  Coordinator(const Coordinator&) = delete;
+  Coordinator& operator=(const Coordinator&) = delete;
+
+  // Loads the state directory, resumes unfinished jobs and starts the lease/planning threads.
+  void Start();
+  // Stops threads (planning in flight finishes); state stays on disk for the next start.
+  void Stop();
+  // Refuse new jobs and leases (graceful drain before shutdown).
+  void SetDraining() { draining_ = true; }
+
+  BlobStore& blobs() { return *blobs_; }
+  const CoordinatorOptions& options() const { return options_; }
+  uint32_t lease_timeout_ms() const { return uint32_t(options_.lease_timeout_s * 1000.0); }
+
+  // --- client API ---
+  std::vector<std::string> FindMissingBlobs(const std::vector<std::string>& hashes) const;
+  std::string Submit(const v1::SubmitJobRequest& request);
+  v1::JobStatus GetJob(const std::string& job_id);
+  std::vector<v1::JobStatus> ListJobs();
+  v1::JobStatus Cancel(const std::string& job_id);
+  JobResult GetResult(const std::string& job_id);
+
+  // --- worker API ---
+  std::string RegisterWorker(const std::string& name, uint32_t protocol_version,
+                             const std::string& software_version);
+  LeaseGrant Lease(const std::string& worker_id);
+  bool Heartbeat(const std::string& worker_id, const std::string& lease_id);
+  bool Complete(const std::string& worker_id, const std::string& lease_id, const Bytes& output);
+  void Fail(const std::string& worker_id, const std::string& lease_id, const std::string& reason,
+            bool hand_back);
+
+  // Prometheus text exposition.
+  std::string MetricsText();
+
+ private:
+  using Clock = std::chrono::steady_clock;
+  struct Task {
+    Bytes spec;  // serialized SubMatrixTask
+    size_t rows = 0;
+    TaskStateCode state = TaskStateCode::kPending;
+    int attempts = 0, failures = 0;
+    std::string worker;
+    Clock::time_point expiry;
+    int64_t attempt_row = 0;
+    std::string result_sha, last_error;
+  };
+  struct Job {
+    int64_t id = 0;
+    std::string name;
+    int priority = 0;
+    v1::JobState state = v1::JOB_STATE_QUEUED;
+    v1::SceneManifest manifest;
+    v1::RenderSettings settings;
+    int stage = 0, stage_count = 1;
+    std::string stage_name;
+    std::vector<Task> tasks;  // of the current stage
+    size_t tasks_done = 0;
+    std::shared_ptr<Plan> plan;
+    PhaseTimes times;
+    std::string lights_sha, receivers_sha, artifact_sha;
+    float clamp = 0;
+    std::string error;
+    Clock::time_point started, stage_started;
+    size_t done_at_stage_start = 0;
+    std::map<std::string, int> worker_failures;
+    uint64_t attempts_total = 0, completions_total = 0;
+    bool advancing = false;
+    std::string result_sha, stats_json;
+  };
+  struct LeaseRef {
+    int64_t job;
+    int stage;
+    uint32_t task;
+  };
+
+  Job& FindJob(const std::string& job_id);  // throws NOT_FOUND; caller holds mu_
+  v1::JobStatus StatusLocked(const Job& job) const;
+  static bool ParseLease(const std::string& lease_id, LeaseRef* ref);
+  Task* FindTaskLocked(const LeaseRef& ref, Job** job);
+  void RecordFailureLocked(Job& job, uint32_t task_id, const std::string& worker,
+                           const std::string& reason);
+  void FailJobLocked(Job& job, const std::string& error);
+  void MaybeStartPlanningLocked();
+  void PlanJob(int64_t id);      // on the planner pool
+  void AdvanceStage(int64_t id);  // on the planner pool: Combine + next stage, or the film
+  void FinishJob(int64_t id, std::shared_ptr<Plan> plan, int stage);
+  void TickLoop();
+  std::string SceneDir(int64_t id) const;
+
+  CoordinatorOptions options_;
+  std::unique_ptr<JobStore> store_;
+  std::unique_ptr<BlobStore> blobs_;
+  std::unique_ptr<ThreadPool> planner_;
+  std::mutex mu_;
+  std::map<int64_t, Job> jobs_;
+  std::set<std::string> workers_;
+  std::atomic<bool> draining_{false};
+  bool stopping_ = false;
+  std::condition_variable tick_cv_;
+  std::thread ticker_;
+
+  // Counters for /metrics.
+  std::atomic<uint64_t> m_leases_{0}, m_completed_{0}, m_duplicates_{0}, m_failed_{0},
+      m_expired_{0}, m_submitted_{0}, m_lease_polls_{0};
+};
+
+}  // namespace lightfarm

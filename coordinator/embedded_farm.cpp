@@ -1,0 +1,111 @@
+#include "coordinator/embedded_farm.h"
+
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <thread>
+
+#include "common/image/image_io.h"
+#include "common/util/error.h"
+#include "coordinator/render_client.h"
+#include "coordinator/services.h"
+#include "worker/worker.h"
+
+namespace lightfarm {
+
+namespace fs = std::filesystem;
+
+EmbeddedRender RenderOnEmbeddedFarm(const std::string& scene_path, const RenderSettings& settings,
+                                    int workers,
+                                    const std::function<void(const v1::JobStatus&)>& progress) {
+  if (workers < 1) throw OptionError("--workers must be >= 1");
+  std::random_device rd;
+  const fs::path dir = fs::temp_directory_path() /
+                       ("lightfarm-embedded-" + std::to_string(getpid()) + "-" + std::to_string(rd()));
+  struct RemoveDir {
+    fs::path p;
+    ~RemoveDir() {
+      std::error_code ec;
+      fs::remove_all(p, ec);
+    }
+  } cleanup{dir};
+
+  // Nothing crashes independently in one process: leases never need to expire, and the
+  // coordinator's limits are the CLI's own.
+  CoordinatorOptions copt;
+  copt.state_dir = (dir / "state").string();
+  copt.lease_timeout_s = 24 * 3600;
+  copt.max_resolution = 1 << 20;
+  copt.max_lights = ~uint64_t(0);
+  copt.max_spp = 1 << 20;
+  copt.max_blob_bytes = ~uint64_t(0) >> 2;
+  copt.max_active_jobs = 1;
+  Coordinator coordinator(copt);
+  coordinator.Start();
+  ServerConfig scfg;
+  scfg.rpc_threads = 2;
+  FarmServer server(coordinator, scfg);
+
+  std::vector<std::unique_ptr<Worker>> pool;
+  std::vector<std::thread> threads;
+  std::exception_ptr worker_error;
+  std::mutex error_mu;
+  for (int i = 0; i < workers; ++i) {
+    WorkerOptions wopt;
+    wopt.name = "embedded-" + std::to_string(i);
+    wopt.cache_dir = (dir / ("worker-" + std::to_string(i))).string();
+    wopt.idle_poll_s = 0.005;
+    wopt.rpc_timeout_s = 3600;
+    pool.push_back(std::make_unique<Worker>(server.InProcessChannel(), wopt));
+    threads.emplace_back([&, w = pool.back().get()] {
+      try {
+        w->Run();
+      } catch (...) {
+        std::lock_guard lock(error_mu);
+        worker_error = std::current_exception();
+      }
+    });
+  }
+  auto stop = [&] {
+    for (auto& w : pool) w->Stop(true);
+    for (std::thread& t : threads)
+      if (t.joinable()) t.join();
+    server.Shutdown(0);
+    coordinator.Stop();
+  };
+
+  EmbeddedRender out;
+  try {
+    RenderClient client(server.InProcessChannel(), "", 3600);
+    v1::SceneManifest manifest = client.UploadScene(scene_path, /*strict=*/true);
+    std::string job;
+    try {
+      job = client.Submit(manifest, settings, 0, scene_path);
+    } catch (const RpcError& e) {
+      if (e.code() == grpc::StatusCode::INVALID_ARGUMENT || e.code() == grpc::StatusCode::RESOURCE_EXHAUSTED)
+        throw OptionError(std::string(e.what()).substr(std::string(e.what()).find(": ") + 2));
+      throw;
+    }
+    v1::JobStatus st = client.Watch(job, progress);
+    if (st.state() != v1::JOB_STATE_DONE) throw std::runtime_error(st.error().empty() ? "job did not finish" : st.error());
+    std::string stats;
+    client.Fetch(job, &out.exr, &stats);
+    out.stats = nlohmann::json::parse(stats);
+    out.stats["scene"] = scene_path;
+    out.stats["farm"]["workers"] = workers;
+    out.stats["farm"]["mode"] = "embedded";
+    const fs::path exr = dir / "result.exr";
+    std::ofstream(exr, std::ios::binary).write(out.exr.data(), std::streamsize(out.exr.size()));
+    out.image = ReadImage(exr.string());
+  } catch (...) {
+    stop();
+    throw;
+  }
+  stop();
+  if (worker_error) std::rethrow_exception(worker_error);
+  return out;
+}
+
+}  // namespace lightfarm

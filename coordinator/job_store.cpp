@@ -1,0 +1,239 @@
+#include "coordinator/job_store.h"
+
+#include <sqlite3.h>
+
+#include <chrono>
+#include <stdexcept>
+
+namespace lightfarm {
+
+namespace {
+
+double Now() {
+  return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
+}
+
+// A prepared statement with positional binding; throws on any SQLite error.
+class Stmt {
+ public:
+  Stmt(sqlite3* db, const char* sql) : db_(db) {
+    if (sqlite3_prepare_v2(db, sql, -1, &st_, nullptr) != SQLITE_OK)
+      throw std::runtime_error(std::string("sqlite prepare: ") + sqlite3_errmsg(db));
+  }
+  ~Stmt() { sqlite3_finalize(st_); }
+  Stmt& Bind(int64_t v) { Check(sqlite3_bind_int64(st_, ++n_, v)); return *this; }
+  Stmt& Bind(int v) { return Bind(int64_t(v)); }
+  Stmt& Bind(double v) { Check(sqlite3_bind_double(st_, ++n_, v)); return *this; }
+  Stmt& Bind(const std::string& v) {
+    Check(sqlite3_bind_blob(st_, ++n_, v.data(), int(v.size()), SQLITE_TRANSIENT));
+    return *this;
+  }
+  bool Step() {
+    int rc = sqlite3_step(st_);
+    if (rc == SQLITE_ROW) return true;
+    if (rc == SQLITE_DONE) return false;
+    throw std::runtime_error(std::string("sqlite step: ") + sqlite3_errmsg(db_));
+  }
+  int64_t Int(int col) { return sqlite3_column_int64(st_, col); }
+  double Real(int col) { return sqlite3_column_double(st_, col); }
+  std::string Str(int col) {
+    const void* p = sqlite3_column_blob(st_, col);
+    int n = sqlite3_column_bytes(st_, col);
+    return p ? std::string(static_cast<const char*>(p), size_t(n)) : std::string();
+  }
+
+ private:
+  void Check(int rc) {
+    if (rc != SQLITE_OK) throw std::runtime_error(std::string("sqlite bind: ") + sqlite3_errmsg(db_));
+  }
+  sqlite3* db_;
+  sqlite3_stmt* st_ = nullptr;
+  int n_ = 0;
+};
+
+}  // namespace
+
+JobStore::JobStore(const std::string& path) {
+  if (sqlite3_open_v2(path.c_str(), &db_, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE |
+                      SQLITE_OPEN_FULLMUTEX, nullptr) != SQLITE_OK)
+    throw std::runtime_error("cannot open state database " + path + ": " +
+                             (db_ ? sqlite3_errmsg(db_) : "out of memory"));
+  sqlite3_busy_timeout(db_, 5000);
+  // WAL + NORMAL: a killed process loses nothing committed; only an OS crash may lose the
+  // last transactions, which re-running those tasks repairs.
+  Exec("PRAGMA journal_mode=WAL");
+  Exec("PRAGMA synchronous=NORMAL");
+  Exec(R"(CREATE TABLE IF NOT EXISTS jobs(
+          id INTEGER PRIMARY KEY AUTOINCREMENT, name TEXT, priority INTEGER, state INTEGER,
+          manifest BLOB, settings BLOB, stage INTEGER DEFAULT 0, error TEXT DEFAULT '',
+          created REAL, finished REAL, result_sha TEXT DEFAULT '', stats_json TEXT DEFAULT ''))");
+  Exec(R"(CREATE TABLE IF NOT EXISTS stages(
+          job_id INTEGER, stage INTEGER, artifact_sha TEXT, PRIMARY KEY(job_id, stage)))");
+  Exec(R"(CREATE TABLE IF NOT EXISTS tasks(
+          job_id INTEGER, stage INTEGER, task_id INTEGER, state INTEGER DEFAULT 0,
+          attempts INTEGER DEFAULT 0, failures INTEGER DEFAULT 0, result_sha TEXT DEFAULT '',
+          last_error TEXT DEFAULT '', PRIMARY KEY(job_id, stage, task_id)))");
+  Exec(R"(CREATE TABLE IF NOT EXISTS attempts(
+          id INTEGER PRIMARY KEY AUTOINCREMENT, job_id INTEGER, stage INTEGER, task_id INTEGER,
+          worker_id TEXT, started REAL, ended REAL, outcome TEXT DEFAULT ''))");
+  Exec(R"(CREATE TABLE IF NOT EXISTS workers(
+          id TEXT PRIMARY KEY, name TEXT, version TEXT, registered REAL))");
+}
+
+JobStore::~JobStore() { sqlite3_close(db_); }
+
+void JobStore::Exec(const char* sql) {
+  char* err = nullptr;
+  if (sqlite3_exec(db_, sql, nullptr, nullptr, &err) != SQLITE_OK) {
+    std::string msg = err ? err : "unknown error";
+    sqlite3_free(err);
+    throw std::runtime_error("sqlite: " + msg);
+  }
+}
+
+int64_t JobStore::InsertJob(const JobRecord& j) {
+  std::lock_guard lock(mu_);
+  Stmt s(db_, "INSERT INTO jobs(name, priority, state, manifest, settings, created) "
+              "VALUES(?, ?, ?, ?, ?, ?)");
+  s.Bind(j.name).Bind(j.priority).Bind(j.state).Bind(j.manifest).Bind(j.settings).Bind(Now()).Step();
+  return sqlite3_last_insert_rowid(db_);
+}
+
+void JobStore::SetJobState(int64_t id, int state, const std::string& error) {
+  std::lock_guard lock(mu_);
+  Stmt(db_, "UPDATE jobs SET state = ?, error = ? WHERE id = ?").Bind(state).Bind(error).Bind(id).Step();
+}
+
+void JobStore::SetJobStage(int64_t id, int stage) {
+  std::lock_guard lock(mu_);
+  Stmt(db_, "UPDATE jobs SET stage = ? WHERE id = ?").Bind(stage).Bind(id).Step();
+}
+
+void JobStore::FinishJob(int64_t id, int state, const std::string& result_sha,
+                         const std::string& stats_json) {
+  std::lock_guard lock(mu_);
+  Stmt(db_, "UPDATE jobs SET state = ?, result_sha = ?, stats_json = ?, finished = ? WHERE id = ?")
+      .Bind(state).Bind(result_sha).Bind(stats_json).Bind(Now()).Bind(id).Step();
+}
+
+void JobStore::SetArtifact(int64_t id, int stage, const std::string& sha) {
+  std::lock_guard lock(mu_);
+  Stmt(db_, "INSERT OR REPLACE INTO stages(job_id, stage, artifact_sha) VALUES(?, ?, ?)")
+      .Bind(id).Bind(stage).Bind(sha).Step();
+}
+
+std::map<int, std::string> JobStore::Artifacts(int64_t id) {
+  std::lock_guard lock(mu_);
+  Stmt s(db_, "SELECT stage, artifact_sha FROM stages WHERE job_id = ?");
+  s.Bind(id);
+  std::map<int, std::string> out;
+  while (s.Step()) out[int(s.Int(0))] = s.Str(1);
+  return out;
+}
+
+void JobStore::InsertTasks(int64_t id, int stage, int count) {
+  std::lock_guard lock(mu_);
+  Exec("BEGIN");
+  try {
+    for (int t = 0; t < count; ++t)
+      Stmt(db_, "INSERT OR IGNORE INTO tasks(job_id, stage, task_id) VALUES(?, ?, ?)")
+          .Bind(id).Bind(stage).Bind(t).Step();
+    Exec("COMMIT");
+  } catch (...) {
+    Exec("ROLLBACK");
+    throw;
+  }
+}
+
+void JobStore::UpdateTask(int64_t id, const TaskRecord& t) {
+  std::lock_guard lock(mu_);
+  Stmt(db_, "UPDATE tasks SET state = ?, attempts = ?, failures = ?, result_sha = ?, "
+            "last_error = ? WHERE job_id = ? AND stage = ? AND task_id = ?")
+      .Bind(t.state).Bind(t.attempts).Bind(t.failures).Bind(t.result_sha).Bind(t.last_error)
+      .Bind(id).Bind(t.stage).Bind(t.task_id).Step();
+}
+
+static std::vector<TaskRecord> ReadTasks(Stmt& s) {
+  std::vector<TaskRecord> out;
+  while (s.Step()) {
+    TaskRecord t;
+    t.stage = int(s.Int(0));
+    t.task_id = int(s.Int(1));
+    t.state = int(s.Int(2));
+    t.attempts = int(s.Int(3));
+    t.failures = int(s.Int(4));
+    t.result_sha = s.Str(5);
+    t.last_error = s.Str(6);
+    out.push_back(std::move(t));
+  }
+  return out;
+}
+
+std::vector<TaskRecord> JobStore::LoadTasks(int64_t id, int stage) {
+  std::lock_guard lock(mu_);
+  Stmt s(db_, "SELECT stage, task_id, state, attempts, failures, result_sha, last_error FROM tasks "
+              "WHERE job_id = ? AND stage = ? ORDER BY task_id");
+  s.Bind(id).Bind(stage);
+  return ReadTasks(s);
+}
+
+std::vector<TaskRecord> JobStore::LoadAllTasks(int64_t id) {
+  std::lock_guard lock(mu_);
+  Stmt s(db_, "SELECT stage, task_id, state, attempts, failures, result_sha, last_error FROM tasks "
+              "WHERE job_id = ? ORDER BY stage, task_id");
+  s.Bind(id);
+  return ReadTasks(s);
+}
+
+int64_t JobStore::BeginAttempt(int64_t job, int stage, int task, const std::string& worker) {
+  std::lock_guard lock(mu_);
+  Stmt(db_, "INSERT INTO attempts(job_id, stage, task_id, worker_id, started) VALUES(?, ?, ?, ?, ?)")
+      .Bind(job).Bind(stage).Bind(task).Bind(worker).Bind(Now()).Step();
+  return sqlite3_last_insert_rowid(db_);
+}
+
+void JobStore::EndAttempt(int64_t attempt, const std::string& outcome) {
+  std::lock_guard lock(mu_);
+  Stmt(db_, "UPDATE attempts SET ended = ?, outcome = ? WHERE id = ?")
+      .Bind(Now()).Bind(outcome).Bind(attempt).Step();
+}
+
+std::vector<JobRecord> JobStore::LoadJobs() {
+  std::lock_guard lock(mu_);
+  Stmt s(db_, "SELECT id, name, priority, state, manifest, settings, stage, error, created, "
+              "result_sha, stats_json FROM jobs ORDER BY id");
+  std::vector<JobRecord> out;
+  while (s.Step()) {
+    JobRecord j;
+    j.id = s.Int(0);
+    j.name = s.Str(1);
+    j.priority = int(s.Int(2));
+    j.state = int(s.Int(3));
+    j.manifest = s.Str(4);
+    j.settings = s.Str(5);
+    j.stage = int(s.Int(6));
+    j.error = s.Str(7);
+    j.created = s.Real(8);
+    j.result_sha = s.Str(9);
+    j.stats_json = s.Str(10);
+    out.push_back(std::move(j));
+  }
+  return out;
+}
+
+void JobStore::UpsertWorker(const std::string& id, const std::string& name,
+                            const std::string& version) {
+  std::lock_guard lock(mu_);
+  Stmt(db_, "INSERT OR REPLACE INTO workers(id, name, version, registered) VALUES(?, ?, ?, ?)")
+      .Bind(id).Bind(name).Bind(version).Bind(Now()).Step();
+}
+
+std::vector<std::string> JobStore::LoadWorkerIds() {
+  std::lock_guard lock(mu_);
+  Stmt s(db_, "SELECT id FROM workers");
+  std::vector<std::string> out;
+  while (s.Step()) out.push_back(s.Str(0));
+  return out;
+}
+
+}  // namespace lightfarm

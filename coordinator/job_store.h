@@ -1,0 +1,75 @@
+// The coordinator's durable state: SQLite in WAL mode under --state-dir. Jobs, the artifact of
+// each finished stage, tasks (state, attempts, result blob), every attempt, workers. A task's
+// result is recorded as soon as it arrives, so a coordinator killed mid-job loses nothing that
+// was acknowledged. Thread-safe (one connection behind a mutex).
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <mutex>
+#include <string>
+#include <vector>
+
+struct sqlite3;
+
+namespace lightfarm {
+
+enum class TaskStateCode : int { kPending = 0, kLeased = 1, kDone = 2 };
+
+struct JobRecord {
+  int64_t id = 0;
+  std::string name;
+  int priority = 0;
+  int state = 0;            // v1::JobState
+  std::string manifest;     // serialized v1::SceneManifest
+  std::string settings;     // serialized v1::RenderSettings
+  int stage = 0;
+  std::string error;
+  double created = 0;       // unix seconds
+  std::string result_sha, stats_json;
+};
+
+struct TaskRecord {
+  int stage = 0;
+  int task_id = 0;
+  int state = 0;  // TaskStateCode
+  int attempts = 0;
+  int failures = 0;
+  std::string result_sha;
+  std::string last_error;
+};
+
+class JobStore {
+ public:
+  explicit JobStore(const std::string& path);
+  ~JobStore();
+  JobStore(const JobStore&) = delete;
+  JobStore& operator=(const JobStore&) = delete;
+
+  int64_t InsertJob(const JobRecord& job);
+  void SetJobState(int64_t id, int state, const std::string& error);
+  void SetJobStage(int64_t id, int stage);
+  void FinishJob(int64_t id, int state, const std::string& result_sha, const std::string& stats_json);
+  void SetArtifact(int64_t id, int stage, const std::string& sha);
+  std::map<int, std::string> Artifacts(int64_t id);
+
+  // Creates rows for tasks 0..count-1 of a stage (existing rows are kept).
+  void InsertTasks(int64_t id, int stage, int count);
+  void UpdateTask(int64_t id, const TaskRecord& task);
+  std::vector<TaskRecord> LoadTasks(int64_t id, int stage);  // by task id
+  std::vector<TaskRecord> LoadAllTasks(int64_t id);          // by stage, task id
+
+  int64_t BeginAttempt(int64_t job, int stage, int task, const std::string& worker);
+  void EndAttempt(int64_t attempt, const std::string& outcome);
+
+  std::vector<JobRecord> LoadJobs();
+  void UpsertWorker(const std::string& id, const std::string& name, const std::string& version);
+  std::vector<std::string> LoadWorkerIds();
+
+ private:
+  void Exec(const char* sql);
+  std::mutex mu_;
+  sqlite3* db_ = nullptr;
+};
+
+}  // namespace lightfarm

@@ -1,0 +1,76 @@
+// `lightfarm-coordinator --listen HOST:PORT --state-dir DIR [--token-file F] [--tls-cert F
+// --tls-key F] [--metrics-listen HOST:PORT] [limits]`: the farm's job service. SIGTERM/SIGINT
+// drain it (health NOT_SERVING, in-flight RPCs finish); unfinished jobs resume at the next start.
+#include <pmmintrin.h>
+#include <spdlog/spdlog.h>
+#include <xmmintrin.h>
+
+#include <CLI/CLI.hpp>
+#include <csignal>
+#include <iostream>
+#include <thread>
+
+#include "coordinator/render_client.h"
+#include "coordinator/services.h"
+
+namespace {
+
+volatile std::sig_atomic_t g_stop = 0;
+void OnSignal(int) { g_stop = 1; }
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  _MM_SET_FLUSH_ZERO_MODE(_MM_FLUSH_ZERO_ON);
+  _MM_SET_DENORMALS_ZERO_MODE(_MM_DENORMALS_ZERO_ON);
+  spdlog::set_pattern("[%H:%M:%S.%e] [coordinator] [%l] %v");
+
+  CLI::App app{"lightfarm-coordinator: the lightfarm render-farm service"};
+  lightfarm::CoordinatorOptions opt;
+  lightfarm::ServerConfig server;
+  std::string token_file, log_level = "info";
+  double max_blob_mb = 1024, drain_s = 10;
+  app.add_option("--listen", server.listen, "gRPC HOST:PORT (port 0: pick one, printed)")->required();
+  app.add_option("--state-dir", opt.state_dir, "SQLite state and blob store")->required();
+  app.add_option("--token-file", token_file, "Bearer token required on every RPC");
+  app.add_option("--tls-cert", server.tls_cert, "PEM certificate chain (TLS)");
+  app.add_option("--tls-key", server.tls_key, "PEM private key (TLS)");
+  app.add_option("--metrics-listen", server.metrics_listen, "HOST:PORT serving Prometheus /metrics");
+  app.add_option("--lease-timeout", opt.lease_timeout_s, "Seconds a lease lives without a heartbeat")
+      ->check(CLI::Range(0.05, 86400.0));
+  app.add_option("--max-attempts", opt.max_attempts, "Failed attempts before a task (and its job) fails")
+      ->check(CLI::Range(1, 100));
+  app.add_option("--max-blob-mb", max_blob_mb, "Largest blob accepted, MiB")->check(CLI::PositiveNumber);
+  app.add_option("--max-resolution", opt.max_resolution, "Largest image side in pixels")->check(CLI::Range(1, 1 << 20));
+  app.add_option("--max-lights", opt.max_lights, "Most virtual lights a job may request");
+  app.add_option("--max-spp", opt.max_spp, "Most samples per pixel a job may request")->check(CLI::Range(1, 1 << 20));
+  app.add_option("--max-active-jobs", opt.max_active_jobs, "Jobs planned or running at once")->check(CLI::Range(1, 10000));
+  app.add_option("--max-queued-jobs", opt.max_queued_jobs, "Unfinished jobs accepted")->check(CLI::Range(1, 1000000));
+  app.add_option("--planner-threads", opt.planner_threads, "Threads planning and combining jobs")->check(CLI::Range(1, 64));
+  app.add_option("--rpc-threads", server.rpc_threads, "Threads serving RPCs")->check(CLI::Range(1, 256));
+  app.add_option("--drain-seconds", drain_s, "Grace period for in-flight RPCs on SIGTERM");
+  app.add_option("--log-level", log_level, "trace|debug|info|warn|error");
+  CLI11_PARSE(app, argc, argv);
+  spdlog::set_level(spdlog::level::from_str(log_level));
+  try {
+    opt.max_blob_bytes = uint64_t(max_blob_mb * 1024.0 * 1024.0);
+    server.token = lightfarm::ReadTokenFile(token_file);
+    lightfarm::Coordinator coordinator(opt);
+    coordinator.Start();
+    lightfarm::FarmServer farm(coordinator, server);
+    std::signal(SIGTERM, OnSignal);
+    std::signal(SIGINT, OnSignal);
+    // The port line is how scripts learn a picked port (--listen HOST:0).
+    std::cout << "listening on port " << farm.port() << std::endl;
+    spdlog::info("listening on {} (port {}), state in {}", server.listen, farm.port(), opt.state_dir);
+    while (!g_stop) std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    spdlog::info("draining");
+    farm.Shutdown(drain_s);
+    coordinator.Stop();
+    spdlog::info("stopped");
+    return 0;
+  } catch (const std::exception& e) {
+    std::cerr << "lightfarm-coordinator: " << e.what() << "\n";
+    return 1;
+  }
+}

@@ -1,0 +1,258 @@
+#include "coordinator/render_client.h"
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+#include <thread>
+
+#include "common/farm/proto_convert.h"
+#include "common/scene/scene_description.h"
+#include "common/util/error.h"
+#include "coordinator/content_hash.h"
+#include "coordinator/services.h"
+
+namespace lightfarm {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+constexpr size_t kChunkBytes = 1 << 20;
+
+std::string ReadAll(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  if (!f) throw std::runtime_error("cannot read " + path);
+  return std::string((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+}
+
+bool Retryable(grpc::StatusCode c) {
+  return c == grpc::StatusCode::UNAVAILABLE || c == grpc::StatusCode::DEADLINE_EXCEEDED ||
+         c == grpc::StatusCode::CANCELLED;
+}
+
+}  // namespace
+
+const char* StatusCodeName(grpc::StatusCode code) {
+  switch (code) {
+    case grpc::StatusCode::OK: return "OK";
+    case grpc::StatusCode::CANCELLED: return "CANCELLED";
+    case grpc::StatusCode::UNKNOWN: return "UNKNOWN";
+    case grpc::StatusCode::INVALID_ARGUMENT: return "INVALID_ARGUMENT";
+    case grpc::StatusCode::DEADLINE_EXCEEDED: return "DEADLINE_EXCEEDED";
+    case grpc::StatusCode::NOT_FOUND: return "NOT_FOUND";
+    case grpc::StatusCode::ALREADY_EXISTS: return "ALREADY_EXISTS";
+    case grpc::StatusCode::PERMISSION_DENIED: return "PERMISSION_DENIED";
+    case grpc::StatusCode::RESOURCE_EXHAUSTED: return "RESOURCE_EXHAUSTED";
+    case grpc::StatusCode::FAILED_PRECONDITION: return "FAILED_PRECONDITION";
+    case grpc::StatusCode::ABORTED: return "ABORTED";
+    case grpc::StatusCode::OUT_OF_RANGE: return "OUT_OF_RANGE";
+    case grpc::StatusCode::UNIMPLEMENTED: return "UNIMPLEMENTED";
+    case grpc::StatusCode::INTERNAL: return "INTERNAL";
+    case grpc::StatusCode::UNAVAILABLE: return "UNAVAILABLE";
+    case grpc::StatusCode::DATA_LOSS: return "DATA_LOSS";
+    case grpc::StatusCode::UNAUTHENTICATED: return "UNAUTHENTICATED";
+    default: return "UNKNOWN";
+  }
+}
+
+RpcError::RpcError(const grpc::Status& status)
+    : std::runtime_error(std::string(StatusCodeName(status.error_code())) + ": " + status.error_message()),
+      code_(status.error_code()) {}
+
+void ThrowIfError(const grpc::Status& status) {
+  if (!status.ok()) throw RpcError(status);
+}
+
+std::shared_ptr<grpc::Channel> MakeChannel(const ChannelOptions& o) {
+  std::shared_ptr<grpc::ChannelCredentials> creds;
+  if (o.tls) {
+    grpc::SslCredentialsOptions ssl;
+    if (!o.tls_ca.empty()) ssl.pem_root_certs = ReadAll(o.tls_ca);
+    creds = grpc::SslCredentials(ssl);
+  } else {
+    creds = grpc::InsecureChannelCredentials();
+  }
+  return grpc::CreateCustomChannel(o.address, creds, FarmChannelArguments());
+}
+
+std::string ReadTokenFile(const std::string& path) {
+  if (path.empty()) return "";
+  std::string t = ReadAll(path);
+  const auto not_space = [](unsigned char c) { return !std::isspace(c); };
+  t.erase(t.begin(), std::find_if(t.begin(), t.end(), not_space));
+  t.erase(std::find_if(t.rbegin(), t.rend(), not_space).base(), t.end());
+  if (t.empty()) throw std::runtime_error("token file " + path + " is empty");
+  return t;
+}
+
+RenderClient::RenderClient(std::shared_ptr<grpc::Channel> channel, std::string token, double timeout_s)
+    : stub_(v1::RenderService::NewStub(channel)), token_(std::move(token)), timeout_s_(timeout_s) {}
+
+void RenderClient::Prepare(grpc::ClientContext* ctx, double timeout_s) const {
+  ctx->set_deadline(std::chrono::system_clock::now() +
+                    std::chrono::milliseconds(int64_t(timeout_s * 1000.0)));
+  if (!token_.empty()) ctx->AddMetadata("authorization", "Bearer " + token_);
+}
+
+std::string RenderClient::UploadBlob(const std::string& data) {
+  const std::string sha = Sha256Hex(data);
+  grpc::ClientContext ctx;
+  Prepare(&ctx, timeout_s_ + double(data.size()) / 1e6);  // a minute plus 1 s per MB
+  v1::UploadBlobResponse resp;
+  auto writer = stub_->UploadBlob(&ctx, &resp);
+  size_t offset = 0;
+  do {
+    v1::BlobChunk chunk;
+    if (offset == 0) {
+      chunk.set_sha256(sha);
+      chunk.set_total_size(data.size());
+    }
+    const size_t n = std::min(kChunkBytes, data.size() - offset);
+    chunk.set_data(data.substr(offset, n));
+    offset += n;
+    if (!writer->Write(chunk)) break;  // the server ended the call: Finish has its status
+  } while (offset < data.size());
+  writer->WritesDone();
+  ThrowIfError(writer->Finish());
+  return sha;
+}
+
+v1::SceneManifest RenderClient::UploadScene(const std::string& scene_path, bool strict) {
+  // Every file the scene reads, relative to their deepest common directory.
+  std::vector<fs::path> files;
+  try {
+    for (const std::string& f : ParseSceneFile(scene_path).files) files.push_back(fs::weakly_canonical(f));
+  } catch (const SceneError&) {
+    if (strict) throw;
+  }
+  const fs::path root = fs::weakly_canonical(scene_path);
+  if (std::find(files.begin(), files.end(), root) == files.end()) files.insert(files.begin(), root);
+  fs::path base = root.parent_path();
+  for (const fs::path& f : files) {
+    while (!base.empty() && base != base.root_path()) {
+      auto rel = f.lexically_relative(base);
+      if (!rel.empty() && *rel.begin() != "..") break;
+      base = base.parent_path();
+    }
+  }
+  v1::SceneManifest manifest;
+  manifest.set_root(root.lexically_relative(base).generic_string());
+  v1::FindMissingBlobsRequest query;
+  std::map<std::string, std::string> path_of;
+  for (const fs::path& f : files) {
+    const std::string rel = f.lexically_relative(base).generic_string();
+    v1::SceneFile* sf = manifest.add_files();
+    sf->set_path(rel);
+    sf->set_sha256(Sha256OfFile(f.string()));
+    path_of[sf->sha256()] = f.string();
+    query.add_sha256(sf->sha256());
+  }
+  grpc::ClientContext ctx;
+  Prepare(&ctx, timeout_s_);
+  v1::FindMissingBlobsResponse missing;
+  ThrowIfError(stub_->FindMissingBlobs(&ctx, query, &missing));
+  for (const std::string& sha : missing.missing()) UploadBlob(ReadAll(path_of.at(sha)));
+  return manifest;
+}
+
+std::string RenderClient::Submit(const v1::SceneManifest& scene, const RenderSettings& settings,
+                                 int priority, const std::string& name) {
+  v1::SubmitJobRequest req;
+  *req.mutable_scene() = scene;
+  *req.mutable_settings() = ToProto(settings);
+  req.set_priority(priority);
+  req.set_name(name);
+  grpc::ClientContext ctx;
+  Prepare(&ctx, timeout_s_);
+  v1::SubmitJobResponse resp;
+  ThrowIfError(stub_->SubmitJob(&ctx, req, &resp));
+  return resp.job_id();
+}
+
+v1::JobStatus RenderClient::GetJob(const std::string& job_id) {
+  v1::GetJobRequest req;
+  req.set_job_id(job_id);
+  grpc::ClientContext ctx;
+  Prepare(&ctx, timeout_s_);
+  v1::JobStatus st;
+  ThrowIfError(stub_->GetJob(&ctx, req, &st));
+  return st;
+}
+
+std::vector<v1::JobStatus> RenderClient::ListJobs() {
+  grpc::ClientContext ctx;
+  Prepare(&ctx, timeout_s_);
+  v1::ListJobsResponse resp;
+  ThrowIfError(stub_->ListJobs(&ctx, v1::ListJobsRequest(), &resp));
+  return {resp.jobs().begin(), resp.jobs().end()};
+}
+
+v1::JobStatus RenderClient::Cancel(const std::string& job_id) {
+  v1::GetJobRequest req;
+  req.set_job_id(job_id);
+  grpc::ClientContext ctx;
+  Prepare(&ctx, timeout_s_);
+  v1::JobStatus st;
+  ThrowIfError(stub_->CancelJob(&ctx, req, &st));
+  return st;
+}
+
+v1::JobStatus RenderClient::Watch(const std::string& job_id,
+                                  const std::function<void(const v1::JobStatus&)>& on_update,
+                                  double max_wait_s) {
+  const auto give_up = std::chrono::steady_clock::now() +
+                       std::chrono::milliseconds(int64_t(max_wait_s * 1000.0));
+  int backoff_ms = 100;
+  v1::JobStatus last;
+  for (;;) {
+    v1::GetJobRequest req;
+    req.set_job_id(job_id);
+    grpc::ClientContext ctx;
+    Prepare(&ctx, max_wait_s);
+    auto reader = stub_->WatchJob(&ctx, req);
+    v1::JobStatus st;
+    while (reader->Read(&st)) {
+      backoff_ms = 100;
+      last = st;
+      if (on_update) on_update(st);
+      if (IsTerminal(st.state())) {
+        ctx.TryCancel();
+        reader->Finish();
+        return st;
+      }
+    }
+    grpc::Status status = reader->Finish();
+    if (!status.ok() && !Retryable(status.error_code())) throw RpcError(status);
+    // The coordinator went away (restart, drain): try again until the overall deadline.
+    if (std::chrono::steady_clock::now() > give_up)
+      throw RpcError(grpc::Status(grpc::StatusCode::DEADLINE_EXCEEDED, "job " + job_id + " did not finish in time"));
+    std::this_thread::sleep_for(std::chrono::milliseconds(backoff_ms));
+    backoff_ms = std::min(backoff_ms * 2, 2000);
+  }
+}
+
+void RenderClient::Fetch(const std::string& job_id, std::string* exr, std::string* stats_json) {
+  v1::GetJobRequest req;
+  req.set_job_id(job_id);
+  grpc::ClientContext ctx;
+  Prepare(&ctx, timeout_s_ * 10);
+  auto reader = stub_->FetchResult(&ctx, req);
+  v1::ResultChunk chunk;
+  exr->clear();
+  bool first = true;
+  uint64_t size = 0;
+  while (reader->Read(&chunk)) {
+    if (first) {
+      *stats_json = chunk.stats_json();
+      size = chunk.exr_size();
+      exr->reserve(size);
+      first = false;
+    }
+    exr->append(chunk.exr_data());
+  }
+  ThrowIfError(reader->Finish());
+  if (first || exr->size() != size)
+    throw std::runtime_error("job " + job_id + ": the result stream was truncated");
+}
+
+}  // namespace lightfarm

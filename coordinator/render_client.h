@@ -1,0 +1,72 @@
+// A client of the coordinator's RenderService: what `lightfarm submit|status|watch|cancel|fetch`
+// and the embedded `lightfarm render` use. Every call carries a deadline and the bearer token.
+#pragma once
+
+#include <grpcpp/grpcpp.h>
+
+#include <functional>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "common/farm/render_job.h"
+#include "lightfarm/v1/render.grpc.pb.h"
+
+namespace lightfarm {
+
+// A failed RPC; what() is "<CODE>: <message>", e.g. "UNAUTHENTICATED: missing or wrong ...".
+class RpcError : public std::runtime_error {
+ public:
+  RpcError(const grpc::Status& status);
+  grpc::StatusCode code() const { return code_; }
+
+ private:
+  grpc::StatusCode code_;
+};
+
+const char* StatusCodeName(grpc::StatusCode code);
+void ThrowIfError(const grpc::Status& status);
+
+struct ChannelOptions {
+  std::string address;  // host:port
+  bool tls = false;
+  std::string tls_ca;   // PEM file with the root certificates; empty: the system's
+};
+std::shared_ptr<grpc::Channel> MakeChannel(const ChannelOptions& options);
+
+// Reads a token file (surrounding whitespace removed); "" for an empty path.
+std::string ReadTokenFile(const std::string& path);
+
+class RenderClient {
+ public:
+  RenderClient(std::shared_ptr<grpc::Channel> channel, std::string token, double timeout_s = 60);
+
+  // Collects the scene's files (the root, its includes, every file they reference), uploads the
+  // ones the coordinator lacks, and returns the manifest. With strict = false a scene that does
+  // not parse here is sent as its root file alone, so the coordinator reports the error on the
+  // job; with strict = true the SceneError is thrown here.
+  v1::SceneManifest UploadScene(const std::string& scene_path, bool strict);
+  std::string UploadBlob(const std::string& data);  // returns its SHA-256
+
+  std::string Submit(const v1::SceneManifest& scene, const RenderSettings& settings, int priority,
+                     const std::string& name);
+  v1::JobStatus GetJob(const std::string& job_id);
+  std::vector<v1::JobStatus> ListJobs();
+  v1::JobStatus Cancel(const std::string& job_id);
+  // Follows the job until it ends, calling on_update for every status; reconnects (with the
+  // same overall deadline) when the coordinator goes away and comes back.
+  v1::JobStatus Watch(const std::string& job_id,
+                      const std::function<void(const v1::JobStatus&)>& on_update,
+                      double max_wait_s = 7 * 24 * 3600.0);
+  // The finished job's EXR bytes and stats JSON.
+  void Fetch(const std::string& job_id, std::string* exr, std::string* stats_json);
+
+ private:
+  void Prepare(grpc::ClientContext* ctx, double timeout_s) const;
+  std::unique_ptr<v1::RenderService::Stub> stub_;
+  std::string token_;
+  double timeout_s_;
+};
+
+}  // namespace lightfarm

@@ -1,0 +1,596 @@
+#include "coordinator/services.h"
+
+#include <grpcpp/ext/proto_server_reflection_plugin.h>
+#include <grpcpp/health_check_service_interface.h>
+#include <httplib.h>
+#include <spdlog/spdlog.h>
+
+#include <fstream>
+#include <set>
+
+#include "common/farm/proto_convert.h"
+
+namespace lightfarm {
+
+namespace {
+
+constexpr size_t kChunkBytes = 1 << 20;
+constexpr int kMaxMessageBytes = 64 << 20;
+
+grpc::Status ToStatus(const FarmError& e) {
+  using C = FarmError::Code;
+  switch (e.code()) {
+    case C::kInvalidArgument: return {grpc::StatusCode::INVALID_ARGUMENT, e.what()};
+    case C::kNotFound: return {grpc::StatusCode::NOT_FOUND, e.what()};
+    case C::kResourceExhausted: return {grpc::StatusCode::RESOURCE_EXHAUSTED, e.what()};
+    case C::kFailedPrecondition: return {grpc::StatusCode::FAILED_PRECONDITION, e.what()};
+    case C::kUnavailable: return {grpc::StatusCode::UNAVAILABLE, e.what()};
+  }
+  return {grpc::StatusCode::INTERNAL, e.what()};
+}
+
+// Runs fn and turns whatever it throws into a status; the coordinator survives any request.
+template <typename Fn>
+grpc::Status Guard(Fn&& fn) {
+  try {
+    fn();
+    return grpc::Status::OK;
+  } catch (const FarmError& e) {
+    return ToStatus(e);
+  } catch (const std::exception& e) {
+    spdlog::error("internal error: {}", e.what());
+    return {grpc::StatusCode::INTERNAL, e.what()};
+  }
+}
+
+const grpc::Status kUnauthenticated(grpc::StatusCode::UNAUTHENTICATED,
+                                    "missing or wrong bearer token (authorization metadata)");
+
+bool Authorized(const std::string& token, const grpc::CallbackServerContext* ctx) {
+  if (token.empty()) return true;
+  const auto& md = ctx->client_metadata();
+  auto it = md.find("authorization");
+  return it != md.end() && TokenMatches(token, std::string(it->second.data(), it->second.size()));
+}
+
+}  // namespace
+
+bool TokenMatches(const std::string& expected, const std::string& header_value) {
+  const std::string want = "Bearer " + expected;
+  unsigned diff = want.size() != header_value.size();
+  for (size_t i = 0; i < want.size(); ++i)
+    diff |= unsigned(uint8_t(want[i]) ^ uint8_t(i < header_value.size() ? header_value[i] : 0));
+  return diff == 0;
+}
+
+grpc::ChannelArguments FarmChannelArguments() {
+  grpc::ChannelArguments args;
+  args.SetMaxReceiveMessageSize(kMaxMessageBytes);
+  args.SetMaxSendMessageSize(kMaxMessageBytes);
+  return args;
+}
+
+// --- streaming helpers ----------------------------------------------------------------------------
+
+// Streams a file in chunks; `fill(msg, data, first)` builds each message.
+template <typename Msg>
+class FileStreamReactor : public grpc::ServerWriteReactor<Msg> {
+ public:
+  using Fill = std::function<void(Msg&, std::string&&, bool first)>;
+  FileStreamReactor(ThreadPool* pool, std::string path, Fill fill)
+      : pool_(pool), path_(std::move(path)), fill_(std::move(fill)) {
+    pool_->Submit([this] {
+      in_.open(path_, std::ios::binary);
+      if (!in_) {
+        this->Finish(grpc::Status(grpc::StatusCode::NOT_FOUND, "cannot read " + path_));
+        return;
+      }
+      Next();
+    });
+  }
+  void OnWriteDone(bool ok) override {
+    if (!ok) {
+      this->Finish(grpc::Status(grpc::StatusCode::CANCELLED, "client went away"));
+      return;
+    }
+    pool_->Submit([this] { Next(); });
+  }
+  void OnDone() override { delete this; }
+
+ private:
+  void Next() {
+    std::string data(kChunkBytes, '\0');
+    in_.read(data.data(), std::streamsize(data.size()));
+    data.resize(size_t(in_.gcount()));
+    if (data.empty() && !first_) {
+      this->Finish(grpc::Status::OK);
+      return;
+    }
+    msg_.Clear();
+    fill_(msg_, std::move(data), first_);
+    first_ = false;
+    this->StartWrite(&msg_);
+  }
+  ThreadPool* pool_;
+  std::string path_;
+  Fill fill_;
+  std::ifstream in_;
+  Msg msg_;
+  bool first_ = true;
+};
+
+// Watchers of jobs: a thread polls each watched job a few times a second and writes a status
+// when it changed, so the gRPC threads never wait on the coordinator.
+class WatchReactor;
+class WatchHub {
+ public:
+  explicit WatchHub(Coordinator& c) : coordinator_(c), thread_([this] { Loop(); }) {}
+  ~WatchHub();
+  void Add(WatchReactor* w) {
+    std::lock_guard lock(mu_);
+    watchers_.insert(w);
+  }
+  // From OnDone: the hub deletes the reactor after its current polling round.
+  void Retire(WatchReactor* w) {
+    std::lock_guard lock(mu_);
+    watchers_.erase(w);
+    retired_.push_back(w);
+  }
+  Coordinator& coordinator() { return coordinator_; }
+
+ private:
+  void Loop();
+  Coordinator& coordinator_;
+  std::mutex mu_;
+  std::condition_variable cv_;
+  std::set<WatchReactor*> watchers_;
+  std::vector<WatchReactor*> retired_;
+  bool stopping_ = false;
+  std::thread thread_;
+};
+
+class WatchReactor : public grpc::ServerWriteReactor<v1::JobStatus> {
+ public:
+  WatchReactor(WatchHub* hub, std::string job_id) : hub_(hub), job_id_(std::move(job_id)) {
+    hub_->Add(this);
+  }
+  // Called by the hub thread.
+  void Poll() {
+    std::lock_guard lock(mu_);
+    if (writing_ || finished_) return;
+    if (cancelled_) {
+      finished_ = true;
+      Finish(grpc::Status(grpc::StatusCode::CANCELLED, "watch cancelled"));
+      return;
+    }
+    v1::JobStatus st;
+    grpc::Status status = Guard([&] { st = hub_->coordinator().GetJob(job_id_); });
+    if (!status.ok()) {
+      finished_ = true;
+      Finish(status);
+      return;
+    }
+    v1::JobStatus cmp = st;
+    cmp.clear_elapsed_s();
+    cmp.clear_eta_s();
+    const std::string key = cmp.SerializeAsString();
+    const bool heartbeat = ++polls_since_write_ >= 40;  // elapsed/ETA refresh every ~2 s
+    if (key == last_ && !heartbeat) return;
+    last_ = key;
+    polls_since_write_ = 0;
+    final_ = IsTerminal(st.state());
+    status_ = st;
+    writing_ = true;
+    StartWrite(&status_);
+  }
+  void OnWriteDone(bool ok) override {
+    std::lock_guard lock(mu_);
+    writing_ = false;
+    if (!ok || final_) {
+      finished_ = true;
+      Finish(ok ? grpc::Status::OK : grpc::Status(grpc::StatusCode::CANCELLED, "client went away"));
+    }
+  }
+  void OnCancel() override {
+    std::lock_guard lock(mu_);
+    cancelled_ = true;
+  }
+  void OnDone() override { hub_->Retire(this); }
+
+ private:
+  WatchHub* hub_;
+  std::string job_id_;
+  std::recursive_mutex mu_;  // a reaction may run inline inside StartWrite/Finish
+  v1::JobStatus status_;
+  std::string last_;
+  int polls_since_write_ = 0;
+  bool writing_ = false, final_ = false, finished_ = false, cancelled_ = false;
+};
+
+void WatchHub::Loop() {
+  std::unique_lock lock(mu_);
+  while (!stopping_) {
+    cv_.wait_for(lock, std::chrono::milliseconds(50));
+    std::vector<WatchReactor*> round(watchers_.begin(), watchers_.end());
+    lock.unlock();
+    for (WatchReactor* w : round) w->Poll();  // a retired reactor is finished: Poll is a no-op
+    lock.lock();
+    for (WatchReactor* w : retired_) delete w;
+    retired_.clear();
+  }
+}
+
+WatchHub::~WatchHub() {
+  {
+    std::lock_guard lock(mu_);
+    stopping_ = true;
+  }
+  cv_.notify_all();
+  thread_.join();
+  for (WatchReactor* w : retired_) delete w;
+}
+
+// Receives a stream of chunks into memory or a blob upload; `on_chunk` consumes each message and
+// `on_end` produces the final status. Both run on the pool, one at a time.
+template <typename Msg>
+class ChunkReadReactor : public grpc::ServerReadReactor<Msg> {
+ public:
+  using OnChunk = std::function<grpc::Status(Msg&)>;
+  using OnEnd = std::function<grpc::Status()>;
+  ChunkReadReactor(ThreadPool* pool, OnChunk on_chunk, OnEnd on_end)
+      : pool_(pool), on_chunk_(std::move(on_chunk)), on_end_(std::move(on_end)) {
+    this->StartRead(&msg_);
+  }
+  void OnReadDone(bool ok) override {
+    pool_->Submit([this, ok] {
+      if (!ok) {
+        this->Finish(on_end_());
+        return;
+      }
+      grpc::Status st = on_chunk_(msg_);
+      if (!st.ok()) {
+        this->Finish(st);
+        return;
+      }
+      this->StartRead(&msg_);
+    });
+  }
+  void OnDone() override { delete this; }
+
+ private:
+  ThreadPool* pool_;
+  OnChunk on_chunk_;
+  OnEnd on_end_;
+  Msg msg_;
+};
+
+template <typename Msg>
+class RejectReadReactor : public grpc::ServerReadReactor<Msg> {
+ public:
+  explicit RejectReadReactor(const grpc::Status& st) { this->Finish(st); }
+  void OnDone() override { delete this; }
+};
+template <typename Msg>
+class RejectWriteReactor : public grpc::ServerWriteReactor<Msg> {
+ public:
+  explicit RejectWriteReactor(const grpc::Status& st) { this->Finish(st); }
+  void OnDone() override { delete this; }
+};
+
+// --- RenderService ----------------------------------------------------------------------------------
+
+class FarmServer::RenderServiceImpl final : public v1::RenderService::CallbackService {
+ public:
+  RenderServiceImpl(Coordinator& c, ThreadPool* pool, WatchHub* hub, std::string token)
+      : c_(c), pool_(pool), hub_(hub), token_(std::move(token)) {}
+
+  template <typename Fn>
+  grpc::ServerUnaryReactor* Unary(grpc::CallbackServerContext* ctx, Fn fn) {
+    grpc::ServerUnaryReactor* reactor = ctx->DefaultReactor();
+    if (!Authorized(token_, ctx)) {
+      reactor->Finish(kUnauthenticated);
+      return reactor;
+    }
+    pool_->Submit([reactor, fn = std::move(fn)]() mutable { reactor->Finish(Guard(fn)); });
+    return reactor;
+  }
+
+  grpc::ServerUnaryReactor* FindMissingBlobs(grpc::CallbackServerContext* ctx,
+                                             const v1::FindMissingBlobsRequest* req,
+                                             v1::FindMissingBlobsResponse* resp) override {
+    return Unary(ctx, [this, req, resp] {
+      std::vector<std::string> hashes(req->sha256().begin(), req->sha256().end());
+      for (const std::string& h : c_.FindMissingBlobs(hashes)) resp->add_missing(h);
+    });
+  }
+
+  grpc::ServerReadReactor<v1::BlobChunk>* UploadBlob(grpc::CallbackServerContext* ctx,
+                                                     v1::UploadBlobResponse* resp) override {
+    if (!Authorized(token_, ctx)) return new RejectReadReactor<v1::BlobChunk>(kUnauthenticated);
+    struct State {
+      std::unique_ptr<BlobStore::Upload> upload;
+      bool first = true, skip = false;
+      std::string sha;
+      uint64_t size = 0, received = 0;
+    };
+    auto state = std::make_shared<State>();
+    BlobStore& blobs = c_.blobs();
+    auto on_chunk = [state, &blobs](v1::BlobChunk& chunk) -> grpc::Status {
+      return Guard([&] {
+        if (state->first) {
+          state->first = false;
+          state->sha = chunk.sha256();
+          state->size = chunk.total_size();
+          if (!IsSha256Hex(state->sha))
+            throw FarmError(FarmError::Code::kInvalidArgument, "the first chunk must name the blob's SHA-256 (lower-case hex)");
+          if (state->size > blobs.max_blob_bytes())
+            throw FarmError(FarmError::Code::kResourceExhausted,
+                            "blob of " + std::to_string(state->size) + " bytes exceeds the limit of " +
+                                std::to_string(blobs.max_blob_bytes()) + " bytes (--max-blob-bytes)");
+          state->skip = blobs.Has(state->sha);
+          if (!state->skip) state->upload = std::make_unique<BlobStore::Upload>(&blobs, state->sha, state->size);
+        }
+        state->received += chunk.data().size();
+        if (state->received > state->size)
+          throw FarmError(state->size >= blobs.max_blob_bytes() ? FarmError::Code::kResourceExhausted
+                                                                : FarmError::Code::kInvalidArgument,
+                          "blob " + state->sha + ": more data than the declared " + std::to_string(state->size) + " bytes");
+        if (state->upload) state->upload->Append(chunk.data());
+      });
+    };
+    auto on_end = [state, resp]() -> grpc::Status {
+      return Guard([&] {
+        if (state->first) throw FarmError(FarmError::Code::kInvalidArgument, "empty upload");
+        if (state->upload) {
+          try {
+            state->upload->Commit();
+          } catch (const std::invalid_argument& e) {
+            throw FarmError(FarmError::Code::kInvalidArgument, e.what());
+          }
+        }
+        resp->set_sha256(state->sha);
+        resp->set_size(state->size);
+      });
+    };
+    return new ChunkReadReactor<v1::BlobChunk>(pool_, on_chunk, on_end);
+  }
+
+  grpc::ServerUnaryReactor* SubmitJob(grpc::CallbackServerContext* ctx, const v1::SubmitJobRequest* req,
+                                      v1::SubmitJobResponse* resp) override {
+    return Unary(ctx, [this, req, resp] { resp->set_job_id(c_.Submit(*req)); });
+  }
+  grpc::ServerUnaryReactor* GetJob(grpc::CallbackServerContext* ctx, const v1::GetJobRequest* req,
+                                   v1::JobStatus* resp) override {
+    return Unary(ctx, [this, req, resp] { *resp = c_.GetJob(req->job_id()); });
+  }
+  grpc::ServerUnaryReactor* ListJobs(grpc::CallbackServerContext* ctx, const v1::ListJobsRequest*,
+                                     v1::ListJobsResponse* resp) override {
+    return Unary(ctx, [this, resp] {
+      for (v1::JobStatus& s : c_.ListJobs()) *resp->add_jobs() = std::move(s);
+    });
+  }
+  grpc::ServerUnaryReactor* CancelJob(grpc::CallbackServerContext* ctx, const v1::GetJobRequest* req,
+                                      v1::JobStatus* resp) override {
+    return Unary(ctx, [this, req, resp] { *resp = c_.Cancel(req->job_id()); });
+  }
+
+  grpc::ServerWriteReactor<v1::JobStatus>* WatchJob(grpc::CallbackServerContext* ctx,
+                                                   const v1::GetJobRequest* req) override {
+    if (!Authorized(token_, ctx)) return new RejectWriteReactor<v1::JobStatus>(kUnauthenticated);
+    return new WatchReactor(hub_, req->job_id());
+  }
+
+  grpc::ServerWriteReactor<v1::ResultChunk>* FetchResult(grpc::CallbackServerContext* ctx,
+                                                        const v1::GetJobRequest* req) override {
+    if (!Authorized(token_, ctx)) return new RejectWriteReactor<v1::ResultChunk>(kUnauthenticated);
+    JobResult result;
+    grpc::Status st = Guard([&] { result = c_.GetResult(req->job_id()); });
+    if (!st.ok()) return new RejectWriteReactor<v1::ResultChunk>(st);
+    std::string stats = result.stats_json;
+    uint64_t size = std::filesystem::file_size(result.exr_path);
+    return new FileStreamReactor<v1::ResultChunk>(
+        pool_, result.exr_path, [stats, size](v1::ResultChunk& m, std::string&& data, bool first) {
+          if (first) {
+            m.set_stats_json(stats);
+            m.set_exr_size(size);
+          }
+          m.set_exr_data(std::move(data));
+        });
+  }
+
+ private:
+  Coordinator& c_;
+  ThreadPool* pool_;
+  WatchHub* hub_;
+  std::string token_;
+};
+
+// --- WorkerService ----------------------------------------------------------------------------------
+
+class FarmServer::WorkerServiceImpl final : public v1::WorkerService::CallbackService {
+ public:
+  WorkerServiceImpl(Coordinator& c, ThreadPool* pool, std::string token)
+      : c_(c), pool_(pool), token_(std::move(token)) {}
+
+  template <typename Fn>
+  grpc::ServerUnaryReactor* Unary(grpc::CallbackServerContext* ctx, Fn fn) {
+    grpc::ServerUnaryReactor* reactor = ctx->DefaultReactor();
+    if (!Authorized(token_, ctx)) {
+      reactor->Finish(kUnauthenticated);
+      return reactor;
+    }
+    pool_->Submit([reactor, fn = std::move(fn)]() mutable { reactor->Finish(Guard(fn)); });
+    return reactor;
+  }
+
+  grpc::ServerUnaryReactor* Register(grpc::CallbackServerContext* ctx, const v1::RegisterRequest* req,
+                                     v1::RegisterResponse* resp) override {
+    return Unary(ctx, [this, req, resp] {
+      resp->set_worker_id(c_.RegisterWorker(req->name(), req->protocol_version(), req->software_version()));
+      resp->set_lease_timeout_ms(c_.lease_timeout_ms());
+    });
+  }
+  grpc::ServerUnaryReactor* LeaseTask(grpc::CallbackServerContext* ctx, const v1::LeaseTaskRequest* req,
+                                      v1::LeaseTaskResponse* resp) override {
+    return Unary(ctx, [this, req, resp, ctx] {
+      if (ctx->IsCancelled()) return;  // the worker gave up waiting; do not lease to nobody
+      LeaseGrant g = c_.Lease(req->worker_id());
+      resp->set_has_task(g.has_task);
+      resp->set_lease_timeout_ms(c_.lease_timeout_ms());
+      if (!g.has_task) return;
+      resp->set_lease_id(g.lease_id);
+      *resp->mutable_job() = std::move(g.job);
+      resp->set_task(std::string(g.task.begin(), g.task.end()));
+      resp->set_artifact_sha256(g.artifact_sha);
+    });
+  }
+  grpc::ServerUnaryReactor* Heartbeat(grpc::CallbackServerContext* ctx, const v1::HeartbeatRequest* req,
+                                      v1::HeartbeatResponse* resp) override {
+    return Unary(ctx, [this, req, resp] { resp->set_keep_going(c_.Heartbeat(req->worker_id(), req->lease_id())); });
+  }
+  grpc::ServerUnaryReactor* FailTask(grpc::CallbackServerContext* ctx, const v1::FailTaskRequest* req,
+                                     v1::FailTaskResponse*) override {
+    return Unary(ctx, [this, req] { c_.Fail(req->worker_id(), req->lease_id(), req->reason(), req->hand_back()); });
+  }
+
+  grpc::ServerReadReactor<v1::TaskResultChunk>* CompleteTask(grpc::CallbackServerContext* ctx,
+                                                             v1::CompleteTaskResponse* resp) override {
+    if (!Authorized(token_, ctx)) return new RejectReadReactor<v1::TaskResultChunk>(kUnauthenticated);
+    struct State {
+      bool first = true;
+      std::string worker, lease;
+      uint64_t size = 0;
+      Bytes data;
+    };
+    auto state = std::make_shared<State>();
+    const uint64_t limit = c_.options().max_result_bytes;
+    auto on_chunk = [state, limit](v1::TaskResultChunk& chunk) -> grpc::Status {
+      return Guard([&] {
+        if (state->first) {
+          state->first = false;
+          state->worker = chunk.worker_id();
+          state->lease = chunk.lease_id();
+          state->size = chunk.total_size();
+          if (state->size > limit)
+            throw FarmError(FarmError::Code::kResourceExhausted, "result of " + std::to_string(state->size) +
+                                                                     " bytes exceeds the limit of " + std::to_string(limit));
+          state->data.reserve(state->size);
+        }
+        if (state->data.size() + chunk.data().size() > state->size)
+          throw FarmError(FarmError::Code::kInvalidArgument, "result larger than its declared size");
+        state->data.insert(state->data.end(), chunk.data().begin(), chunk.data().end());
+      });
+    };
+    auto on_end = [this, state, resp]() -> grpc::Status {
+      return Guard([&] {
+        if (state->first) throw FarmError(FarmError::Code::kInvalidArgument, "empty result stream");
+        if (state->data.size() != state->size)
+          throw FarmError(FarmError::Code::kInvalidArgument, "result stream ended early");
+        resp->set_accepted(c_.Complete(state->worker, state->lease, state->data));
+      });
+    };
+    return new ChunkReadReactor<v1::TaskResultChunk>(pool_, on_chunk, on_end);
+  }
+
+  grpc::ServerWriteReactor<v1::BlobChunk>* FetchBlob(grpc::CallbackServerContext* ctx,
+                                                     const v1::FetchBlobRequest* req) override {
+    if (!Authorized(token_, ctx)) return new RejectWriteReactor<v1::BlobChunk>(kUnauthenticated);
+    if (!c_.blobs().Has(req->sha256()))
+      return new RejectWriteReactor<v1::BlobChunk>(
+          grpc::Status(grpc::StatusCode::NOT_FOUND, "no blob " + req->sha256().substr(0, 80)));
+    std::string sha = req->sha256();
+    uint64_t size = c_.blobs().Size(sha);
+    return new FileStreamReactor<v1::BlobChunk>(
+        pool_, c_.blobs().Path(sha), [sha, size](v1::BlobChunk& m, std::string&& data, bool first) {
+          if (first) {
+            m.set_sha256(sha);
+            m.set_total_size(size);
+          }
+          m.set_data(std::move(data));
+        });
+  }
+
+ private:
+  Coordinator& c_;
+  ThreadPool* pool_;
+  std::string token_;
+};
+
+// --- server ---------------------------------------------------------------------------------------
+
+namespace {
+
+std::string ReadFile(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  if (!f) throw std::runtime_error("cannot read " + path);
+  return std::string((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+}
+
+}  // namespace
+
+FarmServer::FarmServer(Coordinator& coordinator, const ServerConfig& config) : coordinator_(coordinator) {
+  pool_ = std::make_unique<ThreadPool>(std::max(1, config.rpc_threads));
+  watch_hub_ = std::make_unique<WatchHub>(coordinator);
+  render_service_ = std::make_unique<RenderServiceImpl>(coordinator, pool_.get(), watch_hub_.get(), config.token);
+  worker_service_ = std::make_unique<WorkerServiceImpl>(coordinator, pool_.get(), config.token);
+
+  grpc::EnableDefaultHealthCheckService(true);
+  grpc::reflection::InitProtoReflectionServerBuilderPlugin();
+  grpc::ServerBuilder builder;
+  builder.SetMaxReceiveMessageSize(kMaxMessageBytes);
+  builder.SetMaxSendMessageSize(kMaxMessageBytes);
+  if (!config.listen.empty()) {
+    std::shared_ptr<grpc::ServerCredentials> creds;
+    if (!config.tls_cert.empty() || !config.tls_key.empty()) {
+      if (config.tls_cert.empty() || config.tls_key.empty())
+        throw std::invalid_argument("--tls-cert and --tls-key must be given together");
+      grpc::SslServerCredentialsOptions ssl;
+      ssl.pem_key_cert_pairs.push_back({ReadFile(config.tls_key), ReadFile(config.tls_cert)});
+      creds = grpc::SslServerCredentials(ssl);
+    } else {
+      creds = grpc::InsecureServerCredentials();
+    }
+    builder.AddListeningPort(config.listen, creds, &port_);
+  }
+  builder.RegisterService(render_service_.get());
+  builder.RegisterService(worker_service_.get());
+  server_ = builder.BuildAndStart();
+  if (!server_ || (!config.listen.empty() && port_ == 0))
+    throw std::runtime_error("cannot listen on " + config.listen);
+
+  if (!config.metrics_listen.empty()) {
+    const size_t colon = config.metrics_listen.rfind(':');
+    if (colon == std::string::npos) throw std::invalid_argument("--metrics-listen expects HOST:PORT");
+    std::string host = config.metrics_listen.substr(0, colon);
+    int port = std::stoi(config.metrics_listen.substr(colon + 1));
+    metrics_ = std::make_unique<httplib::Server>();
+    metrics_->Get("/metrics", [this](const httplib::Request&, httplib::Response& res) {
+      res.set_content(coordinator_.MetricsText(), "text/plain; version=0.0.4");
+    });
+    if (!metrics_->bind_to_port(host, port)) throw std::runtime_error("cannot listen on " + config.metrics_listen);
+    metrics_thread_ = std::thread([this] { metrics_->listen_after_bind(); });
+  }
+}
+
+FarmServer::~FarmServer() { Shutdown(0); }
+
+std::shared_ptr<grpc::Channel> FarmServer::InProcessChannel() {
+  return server_->InProcessChannel(FarmChannelArguments());
+}
+
+void FarmServer::Shutdown(double grace_seconds) {
+  if (shut_down_) return;
+  shut_down_ = true;
+  coordinator_.SetDraining();
+  if (auto* health = server_->GetHealthCheckService()) health->SetServingStatus(false);
+  server_->Shutdown(std::chrono::system_clock::now() +
+                    std::chrono::milliseconds(int64_t(grace_seconds * 1000)));
+  watch_hub_.reset();
+  pool_->Stop();
+  if (metrics_) {
+    metrics_->stop();
+    if (metrics_thread_.joinable()) metrics_thread_.join();
+  }
+}
+
+}  // namespace lightfarm

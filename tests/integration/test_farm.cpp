@@ -1,0 +1,293 @@
+// The render farm as it runs: a coordinator process and worker processes on loopback, driven
+// through the CLI and the client API. Farm, embedded and direct renders must be bit-identical;
+// killed workers and coordinators must not lose or recompute finished work; bad input must get
+// precise errors while the coordinator stays up.
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <filesystem>
+#include <set>
+#include <thread>
+
+#include "common/farm/render_job.h"
+#include "tests/integration/farm_harness.h"
+
+namespace lightfarm {
+namespace {
+
+using namespace lightfarm::testing;
+
+// 32x32 Cornell box in 16 tiles of 64 receivers: long enough to kill things mid-job.
+const std::vector<std::string> kJobArgs = {"--resolution", "32x32", "--lights", "3000", "--seed", "7",
+                                           "--param", "tile_rows=64"};
+constexpr int kJobTasks = 16;
+
+RenderSettings JobSettings() {
+  RenderSettings s;
+  s.width = s.height = 32;
+  s.lights = 3000;
+  s.seed = 7;
+  s.params = {"tile_rows=64"};
+  return s;
+}
+
+std::string CornellBox() { return SourcePath("scenes/cornell-box/scene.pbrt"); }
+
+// The direct in-process render (RenderScene), computed once.
+const Image& Reference() {
+  static const Image image = RenderScene(CornellBox(), JobSettings()).image;
+  return image;
+}
+
+const char* kTinyScene =
+    "Film \"rgb\" \"integer xresolution\" [8] \"integer yresolution\" [8]\n"
+    "LookAt 0 0 5  0 0 0  0 1 0\nCamera \"perspective\" \"float fov\" [40]\nWorldBegin\n"
+    "LightSource \"point\" \"rgb I\" [5 5 5] \"point3 from\" [0 0 3]\n"
+    "Shape \"trianglemesh\" \"point3 P\" [-1 -1 0 1 -1 0 1 1 0 -1 1 0] \"integer indices\" [0 1 2 0 2 3]\n";
+
+std::vector<std::string> Concat(std::vector<std::string> a, const std::vector<std::string>& b) {
+  a.insert(a.end(), b.begin(), b.end());
+  return a;
+}
+
+TEST(Farm, CliSubmitMatchesEmbeddedAndDirectRenderBitForBit) {
+  TempDir dir;
+  CoordinatorProcess coordinator(dir, dir.Path("state"), {});
+  auto w1 = StartWorker(dir, coordinator.address());
+  auto w2 = StartWorker(dir, coordinator.address());
+  CliResult submit = RunCli(dir, Concat({"submit", CornellBox(), "--server", coordinator.address(), "--wait",
+                                         "--quiet", "--out", dir.Path("farm.exr")},
+                                        kJobArgs));
+  ASSERT_EQ(submit.exit_code, 0) << submit.err;
+  EXPECT_TRUE(std::filesystem::exists(dir.Path("farm.png")));
+  nlohmann::json stats = nlohmann::json::parse(Slurp(dir.Path("farm.json")));
+  EXPECT_EQ(stats["method"], "brute");
+  EXPECT_EQ(stats["seed"], 7);
+  EXPECT_EQ(stats["farm"]["tasks"], kJobTasks);
+
+  CliResult embedded = RunCli(dir, Concat({"render", CornellBox(), "--workers", "2", "--quiet", "--out",
+                                           dir.Path("embedded.exr"), "--stats", dir.Path("embedded.json")},
+                                          kJobArgs));
+  ASSERT_EQ(embedded.exit_code, 0) << embedded.err;
+  const Image farm = ReadImage(dir.Path("farm.exr"));
+  EXPECT_TRUE(SameBits(farm, ReadImage(dir.Path("embedded.exr"))));
+  EXPECT_TRUE(SameBits(farm, Reference()));
+  EXPECT_GT(farm.MeanLuminance(), 0.0);
+  // The counters are the direct render's too (same tasks, summed in the same order).
+  nlohmann::json direct = RenderScene(CornellBox(), JobSettings()).stats;
+  EXPECT_EQ(stats["matrix"]["elements_evaluated"], direct["matrix"]["elements_evaluated"]);
+  EXPECT_EQ(stats["rays"]["shadow"], direct["rays"]["shadow"]);
+
+  // status / fetch / cancel of a finished job through the CLI.
+  const std::string job = stats["farm"]["job_id"];
+  CliResult status = RunCli(dir, {"status", job, "--server", coordinator.address()});
+  EXPECT_EQ(status.exit_code, 0);
+  EXPECT_NE(status.out.find("done"), std::string::npos) << status.out;
+  CliResult fetch = RunCli(dir, {"fetch", job, "--server", coordinator.address(), "--out", dir.Path("again.exr")});
+  ASSERT_EQ(fetch.exit_code, 0) << fetch.err;
+  EXPECT_TRUE(SameBits(farm, ReadImage(dir.Path("again.exr"))));
+  CliResult missing = RunCli(dir, {"status", "999", "--server", coordinator.address()});
+  EXPECT_NE(missing.exit_code, 0);
+  EXPECT_NE(missing.err.find("NOT_FOUND"), std::string::npos) << missing.err;
+}
+
+TEST(Farm, KilledWorkerIsReplacedWithinOneLeaseTimeout) {
+  TempDir dir;
+  const double lease = 1.5;
+  CoordinatorProcess coordinator(dir, dir.Path("state"), {"--lease-timeout", "1.5"});
+  auto w1 = StartWorker(dir, coordinator.address());
+  auto w2 = StartWorker(dir, coordinator.address());
+  RenderClient client = coordinator.Client();
+  const std::string job = client.Submit(client.UploadScene(CornellBox(), true), JobSettings(), 0, "kill-worker");
+  v1::JobStatus st = WaitForJob(client, job, [](const v1::JobStatus& s) { return s.tasks_done() >= 2; }, 60);
+  ASSERT_EQ(st.state(), v1::JOB_STATE_RUNNING) << st.error();
+  // Time per task so far bounds how long the rest should take on the surviving worker.
+  const auto killed_at = std::chrono::steady_clock::now();
+  const int64_t killed_at_wall = std::chrono::duration_cast<std::chrono::milliseconds>(
+                                     std::chrono::system_clock::now().time_since_epoch()).count();
+  w1->Kill(SIGKILL);
+  w1->Wait(5);
+  st = WaitForJob(client, job, [](const v1::JobStatus&) { return false; }, 120);
+  const double after_kill = std::chrono::duration<double>(std::chrono::steady_clock::now() - killed_at).count();
+  ASSERT_EQ(st.state(), v1::JOB_STATE_DONE) << st.error();
+  std::string exr, stats;
+  client.Fetch(job, &exr, &stats);
+  std::ofstream(dir.Path("out.exr"), std::ios::binary) << exr;
+  EXPECT_TRUE(SameBits(ReadImage(dir.Path("out.exr")), Reference()));
+  // The killed worker's lease (if it held one) expired no later than one lease timeout after the
+  // kill, and that task was then done by the surviving worker.
+  StateDb db(dir.Path("state") + "/state.sqlite");
+  const int64_t kill_ms = killed_at_wall;
+  auto expired = db.Query("SELECT task_id, CAST(ended * 1000 AS INTEGER) FROM attempts WHERE job_id = " + job +
+                          " AND outcome LIKE 'failed: lease expired%'");
+  EXPECT_LE(expired.size(), 1u);
+  for (const auto& row : expired) {
+    EXPECT_LE(row[1] - kill_ms, int64_t((lease + 0.5) * 1000)) << "lease expired late";
+    auto redone = db.Query("SELECT COUNT(*) FROM attempts WHERE job_id = " + job + " AND task_id = " +
+                           std::to_string(row[0]) + " AND outcome = 'done'");
+    EXPECT_EQ(redone[0][0], 1);
+  }
+  EXPECT_EQ(db.Query("SELECT COUNT(*) FROM tasks WHERE state = 2 AND job_id = " + job)[0][0], kJobTasks);
+  EXPECT_LT(after_kill, lease + 60.0);
+  EXPECT_TRUE(w2->running());
+}
+
+TEST(Farm, KilledCoordinatorResumesWithoutRecomputingFinishedTasks) {
+  TempDir dir;
+  const std::string state = dir.Path("state");
+  auto coordinator = std::make_unique<CoordinatorProcess>(dir, state, std::vector<std::string>{"--lease-timeout", "2"});
+  const int port = coordinator->port();
+  const std::string address = coordinator->address();
+  auto w1 = StartWorker(dir, address);
+  auto w2 = StartWorker(dir, address);
+  std::string job;
+  {
+    RenderClient client = coordinator->Client();
+    job = client.Submit(client.UploadScene(CornellBox(), true), JobSettings(), 0, "kill-coordinator");
+    v1::JobStatus st = WaitForJob(client, job, [](const v1::JobStatus& s) { return s.tasks_done() >= 4; }, 60);
+    ASSERT_EQ(st.state(), v1::JOB_STATE_RUNNING) << st.error();
+  }
+  // Tasks finished (and acknowledged) before the kill.
+  std::vector<std::vector<int64_t>> done_before;
+  {
+    StateDb db(state + "/state.sqlite");
+    done_before = db.Query("SELECT task_id FROM tasks WHERE state = 2 AND job_id = " + job);
+  }
+  coordinator->process().Kill(SIGKILL);
+  coordinator->process().Wait(5);
+  ASSERT_GE(done_before.size(), 4u);
+  ASSERT_LT(done_before.size(), size_t(kJobTasks));
+  coordinator = std::make_unique<CoordinatorProcess>(dir, state, std::vector<std::string>{"--lease-timeout", "2"}, port);
+  RenderClient client = coordinator->Client();
+  v1::JobStatus st = WaitForJob(client, job, [](const v1::JobStatus&) { return false; }, 120);
+  ASSERT_EQ(st.state(), v1::JOB_STATE_DONE) << st.error();
+  std::string exr, stats;
+  client.Fetch(job, &exr, &stats);
+  std::ofstream(dir.Path("out.exr"), std::ios::binary) << exr;
+  EXPECT_TRUE(SameBits(ReadImage(dir.Path("out.exr")), Reference()));
+  StateDb db(state + "/state.sqlite");
+  for (const auto& row : done_before) {
+    auto attempts = db.Query("SELECT COUNT(*) FROM attempts WHERE job_id = " + job +
+                             " AND task_id = " + std::to_string(row[0]));
+    EXPECT_EQ(attempts[0][0], 1) << "task " << row[0] << " was recomputed after the restart";
+  }
+  EXPECT_EQ(nlohmann::json::parse(stats)["farm"]["tasks"], kJobTasks);
+}
+
+TEST(Farm, AuthenticationIsRequiredOnEveryRpc) {
+  TempDir dir;
+  const std::string token = dir.Write("token", "s3cret-token\n");
+  const std::string wrong = dir.Write("wrong", "not-the-token\n");
+  CoordinatorProcess coordinator(dir, dir.Path("state"), {"--token-file", token});
+  CliResult none = RunCli(dir, {"status", "--server", coordinator.address()});
+  EXPECT_NE(none.exit_code, 0);
+  EXPECT_NE(none.err.find("UNAUTHENTICATED"), std::string::npos) << none.err;
+  CliResult bad = RunCli(dir, {"submit", CornellBox(), "--server", coordinator.address(), "--token-file", wrong});
+  EXPECT_NE(bad.exit_code, 0);
+  EXPECT_NE(bad.err.find("UNAUTHENTICATED"), std::string::npos) << bad.err;
+  // A worker with the wrong token is refused for good.
+  auto worker = StartWorker(dir, coordinator.address(), {"--token-file", wrong});
+  EXPECT_EQ(worker->Wait(20), 3) << worker->err();
+  EXPECT_NE(worker->err().find("UNAUTHENTICATED"), std::string::npos) << worker->err();
+  // With the token everything works.
+  auto good_worker = StartWorker(dir, coordinator.address(), {"--token-file", token});
+  const std::string scene = dir.Write("tiny.pbrt", kTinyScene);
+  CliResult ok = RunCli(dir, {"submit", scene, "--server", coordinator.address(), "--token-file", token, "--wait",
+                              "--quiet", "--lights", "10", "--out", dir.Path("tiny.exr")});
+  EXPECT_EQ(ok.exit_code, 0) << ok.err;
+}
+
+TEST(Farm, BadInputGetsPreciseErrorsAndTheCoordinatorStaysUp) {
+  TempDir dir;
+  CoordinatorProcess coordinator(dir, dir.Path("state"), {"--max-blob-mb", "0.01"});
+  auto worker = StartWorker(dir, coordinator.address());
+  // A malformed scene fails its job, naming file:line.
+  const std::string bad = dir.Write("bad.pbrt", "Film \"rgb\"\nWorldBegin\nShape \"trianglemesh\" \"point3 P\" [ 1 2\n");
+  CliResult r = RunCli(dir, {"submit", bad, "--server", coordinator.address(), "--wait", "--quiet"});
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.err.find("failed"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("bad.pbrt:"), std::string::npos) << r.err;
+  // An oversized blob is refused with RESOURCE_EXHAUSTED.
+  RenderClient client = coordinator.Client();
+  try {
+    client.UploadBlob(std::string(64 * 1024, 'x'));
+    ADD_FAILURE() << "a 64 KiB blob passed a 10 KiB limit";
+  } catch (const RpcError& e) {
+    EXPECT_EQ(e.code(), grpc::StatusCode::RESOURCE_EXHAUSTED) << e.what();
+  }
+  // Unknown method, unknown job, blobs never uploaded.
+  v1::SceneManifest manifest;
+  manifest.set_root("x.pbrt");
+  auto* f = manifest.add_files();
+  f->set_path("x.pbrt");
+  f->set_sha256(std::string(64, 'a'));
+  try {
+    client.Submit(manifest, RenderSettings{}, 0, "");
+    ADD_FAILURE() << "a job with a missing blob was accepted";
+  } catch (const RpcError& e) {
+    EXPECT_EQ(e.code(), grpc::StatusCode::FAILED_PRECONDITION) << e.what();
+  }
+  f->set_path("../../etc/passwd");
+  EXPECT_THROW(client.Submit(manifest, RenderSettings{}, 0, ""), RpcError);
+  EXPECT_THROW(client.GetJob("nope"), RpcError);
+  // Still healthy: a good job completes.
+  const std::string scene = dir.Write("tiny.pbrt", kTinyScene);
+  CliResult ok = RunCli(dir, {"submit", scene, "--server", coordinator.address(), "--wait", "--quiet",
+                              "--lights", "10", "--out", dir.Path("tiny.exr")});
+  EXPECT_EQ(ok.exit_code, 0) << ok.err;
+  EXPECT_TRUE(coordinator.process().running());
+}
+
+TEST(Farm, OldVersionWorkerIsRefused) {
+  TempDir dir;
+  CoordinatorProcess coordinator(dir, dir.Path("state"), {});
+  auto old = StartWorker(dir, coordinator.address(), {"--protocol-version", "0"});
+  EXPECT_EQ(old->Wait(20), 3);
+  const std::string err = old->err();
+  EXPECT_NE(err.find("FAILED_PRECONDITION"), std::string::npos) << err;
+  EXPECT_NE(err.find("protocol 0"), std::string::npos) << err;
+  EXPECT_NE(err.find("upgrade"), std::string::npos) << err;
+}
+
+TEST(Farm, FiftyConcurrentSubmissionsAllCompleteOnce) {
+  TempDir dir;
+  CoordinatorProcess coordinator(dir, dir.Path("state"), {"--max-active-jobs", "4"});
+  auto w1 = StartWorker(dir, coordinator.address());
+  auto w2 = StartWorker(dir, coordinator.address());
+  const std::string scene = dir.Write("tiny.pbrt", kTinyScene);
+  RenderSettings s;
+  s.lights = 10;
+  s.seed = 3;
+  constexpr int kJobs = 50;
+  std::vector<std::string> ids(kJobs);
+  std::atomic<int> errors{0};
+  std::vector<std::thread> threads;
+  for (int i = 0; i < kJobs; ++i)
+    threads.emplace_back([&, i] {
+      try {
+        RenderClient client = coordinator.Client();
+        ids[size_t(i)] = client.Submit(client.UploadScene(scene, true), s, i % 3, "job" + std::to_string(i));
+      } catch (const std::exception& e) {
+        ++errors;
+        ADD_FAILURE() << e.what();
+      }
+    });
+  for (std::thread& t : threads) t.join();
+  ASSERT_EQ(errors, 0);
+  EXPECT_EQ(std::set<std::string>(ids.begin(), ids.end()).size(), size_t(kJobs));
+  RenderClient client = coordinator.Client();
+  std::string first_exr;
+  for (const std::string& id : ids) {
+    v1::JobStatus st = WaitForJob(client, id, [](const v1::JobStatus&) { return false; }, 120);
+    ASSERT_EQ(st.state(), v1::JOB_STATE_DONE) << id << ": " << st.error();
+    EXPECT_EQ(st.tasks_completed_total(), 1u) << id;
+    std::string exr, stats;
+    client.Fetch(id, &exr, &stats);
+    if (first_exr.empty()) first_exr = exr;
+    EXPECT_EQ(exr, first_exr) << id;
+  }
+  EXPECT_EQ(client.ListJobs().size(), size_t(kJobs));
+}
+
+}  // namespace
+}  // namespace lightfarm

@@ -1,0 +1,379 @@
+#include "worker/worker.h"
+
+#include <spdlog/spdlog.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <future>
+#include <random>
+
+#include "common/farm/proto_convert.h"
+#include "common/farm/serialize.h"
+#include "common/scene/scene_description.h"
+#include "coordinator/content_hash.h"
+#include "coordinator/render_client.h"
+
+namespace lightfarm {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+constexpr size_t kChunkBytes = 1 << 20;
+
+Bytes ReadBytes(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  if (!f) throw std::runtime_error("cannot read " + path);
+  return Bytes((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+}
+
+bool Transient(grpc::StatusCode c) {
+  return c == grpc::StatusCode::UNAVAILABLE || c == grpc::StatusCode::DEADLINE_EXCEEDED ||
+         c == grpc::StatusCode::CANCELLED || c == grpc::StatusCode::INTERNAL ||
+         c == grpc::StatusCode::UNKNOWN;
+}
+
+}  // namespace
+
+// --- BlobCache ----------------------------------------------------------------------------------
+
+BlobCache::BlobCache(std::string dir, uint64_t max_bytes) : dir_(std::move(dir)), max_bytes_(max_bytes) {
+  fs::create_directories(dir_ + "/tmp");
+  std::error_code ec;
+  for (const auto& e : fs::directory_iterator(dir_ + "/tmp", ec)) fs::remove(e.path(), ec);
+  // Blobs of a previous run are reused, oldest first out.
+  std::vector<std::pair<fs::file_time_type, fs::path>> existing;
+  for (const auto& e : fs::directory_iterator(dir_))
+    if (e.is_regular_file() && IsSha256Hex(e.path().filename().string()))
+      existing.emplace_back(e.last_write_time(), e.path());
+  std::sort(existing.begin(), existing.end());
+  for (const auto& [t, p] : existing) Touch(p.filename().string(), fs::file_size(p));
+}
+
+bool BlobCache::Has(const std::string& sha) {
+  std::lock_guard lock(mu_);
+  auto it = entries_.find(sha);
+  if (it == entries_.end()) return false;
+  lru_.splice(lru_.begin(), lru_, it->second.second);
+  return true;
+}
+
+std::string BlobCache::TempPath() {
+  std::lock_guard lock(mu_);
+  return dir_ + "/tmp/" + std::to_string(counter_++);
+}
+
+void BlobCache::Touch(const std::string& sha, uint64_t size) {
+  auto it = entries_.find(sha);
+  if (it != entries_.end()) {
+    lru_.splice(lru_.begin(), lru_, it->second.second);
+    return;
+  }
+  lru_.push_front(sha);
+  entries_[sha] = {size, lru_.begin()};
+  total_ += size;
+  // Evict least recently used blobs, keeping at least the newest.
+  while (total_ > max_bytes_ && lru_.size() > 1) {
+    const std::string victim = lru_.back();
+    lru_.pop_back();
+    total_ -= entries_[victim].first;
+    entries_.erase(victim);
+    std::error_code ec;
+    fs::remove(Path(victim), ec);
+  }
+}
+
+void BlobCache::Adopt(const std::string& sha, const std::string& tmp_path) {
+  const uint64_t size = fs::file_size(tmp_path);
+  fs::rename(tmp_path, Path(sha));
+  std::lock_guard lock(mu_);
+  Touch(sha, size);
+}
+
+// --- Worker -------------------------------------------------------------------------------------
+
+// What a job's tasks need, rebuilt from its blobs: the scene, the plan's lights and receivers,
+// the light tree when the method needs one, the lighting matrix and the method.
+struct Worker::JobRuntime {
+  std::string key;
+  std::unique_ptr<Scene> scene;
+  LightSet lights;
+  ReceiverSet receivers;
+  std::unique_ptr<LightTree> tree;
+  std::unique_ptr<LightingMatrix> matrix;
+  std::unique_ptr<GatherMethod> method;
+  GatherContext context() const { return GatherContext{*matrix, tree.get()}; }
+};
+
+Worker::Worker(std::shared_ptr<grpc::Channel> channel, WorkerOptions options)
+    : stub_(v1::WorkerService::NewStub(channel)), options_(std::move(options)) {
+  if (options_.name.empty()) {
+    char host[256] = {};
+    gethostname(host, sizeof(host) - 1);
+    options_.name = std::string(host) + "-" + std::to_string(getpid());
+  }
+  std::string dir = options_.cache_dir;
+  if (dir.empty()) {
+    std::random_device rd;
+    temp_dir_ = (fs::temp_directory_path() / ("lightfarm-worker-" + std::to_string(getpid()) + "-" +
+                                              std::to_string(rd()))).string();
+    dir = temp_dir_;
+  }
+  cache_ = std::make_unique<BlobCache>(dir + "/blobs", options_.cache_bytes);
+}
+
+Worker::~Worker() {
+  runtime_.reset();
+  if (!temp_dir_.empty()) {
+    std::error_code ec;
+    fs::remove_all(temp_dir_, ec);
+  }
+}
+
+void Worker::Prepare(grpc::ClientContext* ctx, double timeout_s) const {
+  ctx->set_deadline(std::chrono::system_clock::now() +
+                    std::chrono::milliseconds(int64_t(timeout_s * 1000.0)));
+  if (!options_.token.empty()) ctx->AddMetadata("authorization", "Bearer " + options_.token);
+}
+
+void Worker::Stop(bool hand_back) {
+  hand_back_ = hand_back_ || hand_back;
+  stop_ = true;
+  sleep_cv_.notify_all();
+}
+
+void Worker::SleepUnlessStopping(double seconds) {
+  std::unique_lock lock(sleep_mu_);
+  sleep_cv_.wait_for(lock, std::chrono::milliseconds(int64_t(seconds * 1000.0)), [&] { return stop_.load(); });
+}
+
+void Worker::Register() {
+  double backoff = 0.1;
+  while (!stop_) {
+    v1::RegisterRequest req;
+    req.set_name(options_.name);
+    req.set_protocol_version(options_.protocol_version);
+    req.set_software_version(options_.software_version);
+    req.set_threads(options_.threads);
+    v1::RegisterResponse resp;
+    grpc::ClientContext ctx;
+    Prepare(&ctx, options_.rpc_timeout_s);
+    grpc::Status st = stub_->Register(&ctx, req, &resp);
+    if (st.ok()) {
+      worker_id_ = resp.worker_id();
+      lease_timeout_ms_ = std::max(100u, resp.lease_timeout_ms());
+      spdlog::info("registered as {} (lease timeout {} ms)", worker_id_, lease_timeout_ms_);
+      return;
+    }
+    if (st.error_code() == grpc::StatusCode::FAILED_PRECONDITION ||
+        st.error_code() == grpc::StatusCode::UNAUTHENTICATED ||
+        st.error_code() == grpc::StatusCode::PERMISSION_DENIED)
+      throw WorkerRefused("coordinator refused this worker: " + std::string(RpcError(st).what()));
+    spdlog::warn("coordinator unreachable ({}); retrying in {:.1f}s", st.error_message(), backoff);
+    SleepUnlessStopping(backoff);
+    backoff = std::min(backoff * 2, 5.0);
+  }
+}
+
+void Worker::Run() {
+  Register();
+  double backoff = options_.idle_poll_s;
+  while (!stop_) {
+    try {
+      if (RunOneTask()) {
+        backoff = options_.idle_poll_s;
+        continue;
+      }
+      SleepUnlessStopping(options_.idle_poll_s);
+    } catch (const RpcError& e) {
+      if (e.code() == grpc::StatusCode::NOT_FOUND) {
+        // The coordinator no longer knows this worker (its state was reset): register again.
+        Register();
+        continue;
+      }
+      if (e.code() == grpc::StatusCode::UNAUTHENTICATED) throw WorkerRefused(e.what());
+      spdlog::warn("coordinator: {}; retrying in {:.1f}s", e.what(), backoff);
+      SleepUnlessStopping(backoff);
+      backoff = std::min(backoff * 2, 5.0);
+    }
+  }
+}
+
+std::string Worker::FetchBlob(const std::string& sha) {
+  if (cache_->Has(sha)) return cache_->Path(sha);
+  const std::string tmp = cache_->TempPath();
+  {
+    std::ofstream out(tmp, std::ios::binary);
+    v1::FetchBlobRequest req;
+    req.set_sha256(sha);
+    grpc::ClientContext ctx;
+    Prepare(&ctx, options_.rpc_timeout_s * 20);
+    auto reader = stub_->FetchBlob(&ctx, req);
+    v1::BlobChunk chunk;
+    Sha256 hash;
+    while (reader->Read(&chunk)) {
+      hash.Update(chunk.data().data(), chunk.data().size());
+      out.write(chunk.data().data(), std::streamsize(chunk.data().size()));
+    }
+    ThrowIfError(reader->Finish());
+    out.close();
+    if (!out) throw std::runtime_error("cannot write " + tmp);
+    const std::string got = hash.HexDigest();
+    if (got != sha) throw std::runtime_error("blob " + sha + " arrived corrupted (hash " + got + ")");
+  }
+  cache_->Adopt(sha, tmp);
+  return cache_->Path(sha);
+}
+
+std::shared_ptr<Worker::JobRuntime> Worker::Runtime(const v1::JobContext& job) {
+  const std::string key = job.job_id() + "/" + job.lights_sha256() + "/" + job.receivers_sha256();
+  if (runtime_ && runtime_->key == key) return runtime_;
+  runtime_.reset();  // one job's matrix at a time
+  auto rt = std::make_shared<JobRuntime>();
+  rt->key = key;
+  // Materialize the scene files in their relative layout, then build as the coordinator did.
+  const fs::path dir = fs::path(cache_->TempPath() + "-scene");
+  struct RemoveDir {
+    fs::path p;
+    ~RemoveDir() {
+      std::error_code ec;
+      fs::remove_all(p, ec);
+    }
+  } cleanup{dir};
+  for (const v1::SceneFile& f : job.scene().files()) {
+    const fs::path rel(f.path());
+    if (rel.is_absolute() || f.path().find("..") != std::string::npos)
+      throw std::runtime_error("unsafe scene path " + f.path());
+    fs::create_directories((dir / rel).parent_path());
+    fs::copy_file(FetchBlob(f.sha256()), dir / rel);
+  }
+  const RenderSettings settings = FromProto(job.settings());
+  SceneDescription desc = ParseSceneFile((dir / job.scene().root()).string());
+  SceneBuildOptions build;
+  build.width = settings.width;
+  build.height = settings.height;
+  build.filter = settings.filter;
+  rt->scene = Scene::Build(desc, build);
+  rt->lights = DeserializeLightSet(ReadBytes(FetchBlob(job.lights_sha256())));
+  rt->receivers = DeserializeReceiverSet(ReadBytes(FetchBlob(job.receivers_sha256())));
+  rt->method = CreateGatherMethod(settings.method, OptionMap::Parse(settings.params));
+  if (rt->method->needs_light_tree())
+    rt->tree = std::make_unique<LightTree>(LightTree::Build(rt->lights, settings.seed));
+  MatrixOptions mopt;
+  mopt.clamp = job.clamp();
+  rt->matrix = std::make_unique<LightingMatrix>(*rt->scene, rt->receivers, rt->lights, mopt);
+  runtime_ = rt;
+  return rt;
+}
+
+bool Worker::RunOneTask() {
+  v1::LeaseTaskRequest req;
+  req.set_worker_id(worker_id_);
+  v1::LeaseTaskResponse lease;
+  {
+    grpc::ClientContext ctx;
+    Prepare(&ctx, options_.rpc_timeout_s);
+    ThrowIfError(stub_->LeaseTask(&ctx, req, &lease));
+  }
+  if (!lease.has_task()) return false;
+  if (lease.lease_timeout_ms() > 0) lease_timeout_ms_ = lease.lease_timeout_ms();
+
+  auto fail = [&](const std::string& reason, bool hand_back) {
+    v1::FailTaskRequest f;
+    f.set_worker_id(worker_id_);
+    f.set_lease_id(lease.lease_id());
+    f.set_reason(reason);
+    f.set_hand_back(hand_back);
+    v1::FailTaskResponse resp;
+    grpc::ClientContext ctx;
+    Prepare(&ctx, options_.rpc_timeout_s);
+    grpc::Status st = stub_->FailTask(&ctx, f, &resp);
+    if (!st.ok()) spdlog::warn("could not report the failure: {}", st.error_message());
+  };
+
+  // Run the task on its own thread; heartbeat meanwhile so the lease stays ours.
+  std::shared_ptr<JobRuntime> rt;
+  SubMatrixTask task;
+  StageArtifact artifact;
+  try {
+    rt = Runtime(lease.job());
+    task = DeserializeTask(ByteView(reinterpret_cast<const uint8_t*>(lease.task().data()), lease.task().size()));
+    for (uint32_t r : task.rows)
+      if (r >= rt->matrix->rows()) throw std::runtime_error("task row " + std::to_string(r) + " out of range");
+    if (!lease.artifact_sha256().empty()) artifact = ReadBytes(FetchBlob(lease.artifact_sha256()));
+  } catch (const RpcError& e) {
+    if (Transient(e.code())) throw;
+    fail(std::string("cannot prepare the task: ") + e.what(), false);
+    return true;
+  } catch (const std::exception& e) {
+    fail(std::string("cannot prepare the task: ") + e.what(), false);
+    return true;
+  }
+  auto future = std::async(std::launch::async, [&] { return rt->method->RunTask(rt->context(), task, artifact); });
+  const auto beat = std::chrono::milliseconds(std::max<uint32_t>(20, lease_timeout_ms_ / 4));
+  bool keep = true;
+  while (future.wait_for(beat) != std::future_status::ready) {
+    if (hand_back_) break;
+    v1::HeartbeatRequest hb;
+    hb.set_worker_id(worker_id_);
+    hb.set_lease_id(lease.lease_id());
+    v1::HeartbeatResponse resp;
+    grpc::ClientContext ctx;
+    Prepare(&ctx, std::min(options_.rpc_timeout_s, lease_timeout_ms_ / 2000.0));
+    grpc::Status st = stub_->Heartbeat(&ctx, hb, &resp);
+    if (st.ok() && !resp.keep_going()) keep = false;  // cancelled or re-leased: result unwanted
+  }
+  if (hand_back_) {
+    fail("worker shutting down", true);
+    future.wait();  // RunTask cannot be interrupted; its result is dropped
+    return true;
+  }
+  TaskOutput output;
+  try {
+    output = future.get();
+  } catch (const std::exception& e) {
+    fail(std::string("task failed: ") + e.what(), false);
+    return true;
+  }
+  if (!keep) return true;
+
+  // Stream the result back; retry while the coordinator is away (it accepts a completion for a
+  // task it still needs, even after a restart).
+  const Bytes bytes = SerializeTaskOutput(output);
+  double backoff = 0.1;
+  const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(120);
+  for (;;) {
+    grpc::ClientContext ctx;
+    Prepare(&ctx, options_.rpc_timeout_s + double(bytes.size()) / 1e6);
+    v1::CompleteTaskResponse resp;
+    auto writer = stub_->CompleteTask(&ctx, &resp);
+    size_t offset = 0;
+    do {
+      v1::TaskResultChunk chunk;
+      if (offset == 0) {
+        chunk.set_worker_id(worker_id_);
+        chunk.set_lease_id(lease.lease_id());
+        chunk.set_total_size(bytes.size());
+      }
+      const size_t n = std::min(kChunkBytes, bytes.size() - offset);
+      chunk.set_data(reinterpret_cast<const char*>(bytes.data()) + offset, n);
+      offset += n;
+      if (!writer->Write(chunk)) break;
+    } while (offset < bytes.size());
+    writer->WritesDone();
+    grpc::Status st = writer->Finish();
+    if (st.ok()) {
+      ++tasks_done_;
+      return true;
+    }
+    if (!Transient(st.error_code()) || std::chrono::steady_clock::now() > give_up || hand_back_) {
+      spdlog::warn("result of lease {} not delivered: {}", lease.lease_id(), st.error_message());
+      return true;
+    }
+    SleepUnlessStopping(backoff);
+    backoff = std::min(backoff * 2, 2.0);
+  }
+}
+
+}  // namespace lightfarm

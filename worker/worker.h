@@ -1,0 +1,94 @@
+// A farm worker: registers with the coordinator (version handshake), then pulls tasks: lease,
+// fetch and cache the job's blobs by hash, rebuild the scene and lighting matrix (cached per job),
+// run the task with oneTBB while heartbeating, stream the result back. Reconnects with backoff
+// when the coordinator is away. No inbound port.
+#pragma once
+
+#include <grpcpp/grpcpp.h>
+
+#include <atomic>
+#include <cstdint>
+#include <list>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <stdexcept>
+#include <string>
+
+#include "common/farm/render_job.h"
+#include "coordinator/coordinator.h"
+#include "lightfarm/v1/worker.grpc.pb.h"
+
+namespace lightfarm {
+
+// The coordinator refused this worker for good (incompatible version, wrong token).
+class WorkerRefused : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+struct WorkerOptions {
+  std::string name;                   // default: host-pid
+  std::string token;
+  std::string cache_dir;              // default: a temporary directory, removed at exit
+  uint64_t cache_bytes = 4ull << 30;  // blob cache bound (least recently used blobs go first)
+  uint32_t protocol_version = kWorkerProtocolVersion;  // tests pretend to be an old worker
+  std::string software_version = LIGHTFARM_VERSION;
+  double rpc_timeout_s = 30;
+  double idle_poll_s = 0.2;           // pause between LeaseTask calls while there is no task
+  int threads = 0;                    // reported to the coordinator (0: all cores)
+};
+
+// Blobs by SHA-256 under a directory, bounded in total size (LRU).
+class BlobCache {
+ public:
+  BlobCache(std::string dir, uint64_t max_bytes);
+  bool Has(const std::string& sha);
+  std::string Path(const std::string& sha) const { return dir_ + "/" + sha; }
+  // Moves a verified temporary file into the cache and evicts beyond the bound.
+  void Adopt(const std::string& sha, const std::string& tmp_path);
+  std::string TempPath();
+
+ private:
+  void Touch(const std::string& sha, uint64_t size);
+  std::string dir_;
+  uint64_t max_bytes_, total_ = 0, counter_ = 0;
+  std::list<std::string> lru_;  // front: most recent
+  std::map<std::string, std::pair<uint64_t, std::list<std::string>::iterator>> entries_;
+  std::mutex mu_;
+};
+
+class Worker {
+ public:
+  Worker(std::shared_ptr<grpc::Channel> channel, WorkerOptions options);
+  ~Worker();
+
+  // Registers and runs tasks until Stop(). Throws WorkerRefused.
+  void Run();
+  // Drain: finish the current task, then Run returns. hand_back: give it back immediately.
+  void Stop(bool hand_back = false);
+  uint64_t tasks_done() const { return tasks_done_; }
+
+ private:
+  struct JobRuntime;
+  void Register();
+  bool RunOneTask();  // false when there was nothing to do
+  std::shared_ptr<JobRuntime> Runtime(const v1::JobContext& ctx);
+  std::string FetchBlob(const std::string& sha);  // path of the cached blob
+  void Prepare(grpc::ClientContext* ctx, double timeout_s) const;
+  void SleepUnlessStopping(double seconds);
+
+  std::unique_ptr<v1::WorkerService::Stub> stub_;
+  WorkerOptions options_;
+  std::string temp_dir_;  // removed at destruction when cache_dir was not given
+  std::unique_ptr<BlobCache> cache_;
+  std::string worker_id_;
+  uint32_t lease_timeout_ms_ = 30000;
+  std::shared_ptr<JobRuntime> runtime_;  // the last job's scene and matrix
+  std::atomic<bool> stop_{false}, hand_back_{false};
+  std::atomic<uint64_t> tasks_done_{0};
+  std::mutex sleep_mu_;
+  std::condition_variable sleep_cv_;
+};
+
+}  // namespace lightfarm
