@@ -1,5 +1,6 @@
 #include "coordinator/embedded_farm.h"
 
+#include <spdlog/spdlog.h>
 #include <unistd.h>
 
 #include <filesystem>
@@ -21,6 +22,13 @@ EmbeddedRender RenderOnEmbeddedFarm(const std::string& scene_path, const RenderS
                                     int workers,
                                     const std::function<void(const v1::JobStatus&)>& progress) {
   if (workers < 1) throw OptionError("--workers must be >= 1");
+  // The farm logs a failing job as a warning; here the caller reports it (one line), so only
+  // errors are logged while the embedded farm runs.
+  struct LogLevel {
+    spdlog::level::level_enum saved = spdlog::get_level();
+    LogLevel() { spdlog::set_level(std::max(saved, spdlog::level::err)); }
+    ~LogLevel() { spdlog::set_level(saved); }
+  } quiet_farm_logs;
   std::random_device rd;
   const fs::path dir = fs::temp_directory_path() /
                        ("lightfarm-embedded-" + std::to_string(getpid()) + "-" + std::to_string(rd()));

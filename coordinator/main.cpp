@@ -2,6 +2,7 @@
 // --tls-key F] [--metrics-listen HOST:PORT] [limits]`: the farm's job service. SIGTERM/SIGINT
 // drain it (health NOT_SERVING, in-flight RPCs finish); unfinished jobs resume at the next start.
 #include <pmmintrin.h>
+#include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 #include <xmmintrin.h>
 
@@ -23,6 +24,7 @@ void OnSignal(int) { g_stop = 1; }
 int main(int argc, char** argv) {
   _MM_SET_FLUSH_ZERO_MODE(_MM_FLUSH_ZERO_ON);
   _MM_SET_DENORMALS_ZERO_MODE(_MM_DENORMALS_ZERO_ON);
+  spdlog::set_default_logger(spdlog::stderr_color_mt("lightfarm"));  // stdout is for data
   spdlog::set_pattern("[%H:%M:%S.%e] [coordinator] [%l] %v");
 
   CLI::App app{"lightfarm-coordinator: the lightfarm render-farm service"};

@@ -8,8 +8,9 @@ root=$(cd "$(dirname "$0")/.." && pwd)
 shared=${LIGHTFARM_SHARED:-$(cd "$root/.." && pwd)/shared}
 full=0
 [ "${1:-}" = "--full" ] && full=1
-bash "$root/scripts/build.sh" >/dev/null
-lf="$root/build/lightfarm"
+build=${LIGHTFARM_BUILD:-$root/build}
+bash "$root/scripts/build.sh" "$build" >/dev/null
+lf="$build/lightfarm"
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 out="$root/docs/reference-accuracy.md"
@@ -44,6 +45,11 @@ PY
   echo "- At 1 sample per pixel the error is dominated by aliasing at geometric edges and around the"
   echo "  light, which the 512-spp reference resolves; renders with \`--spp 16 --filter box\` isolate"
   echo "  the many-light error (a box filter matches the area-averaged reference)."
+  echo "- veach-mis: the reference does not look like pbrt-v4's rendering of this file. Its walls match"
+  echo "  our direct-only render (no indirect light, although the file asks for maxdepth 3), and"
+  echo "  its glossy plates fall off like a Beckmann lobe scaled by a constant neutral factor"
+  echo "  rather than pbrt-v4's GGX conductor; camera, geometry and light radiances match it pixel for"
+  echo "  pixel. Its plate region therefore cannot judge the renderer; the row is kept for completeness."
   echo "- water-caustic: everything under the water is lit through a specular surface. VPLs carry"
   echo "  that light to a second bounce (caustic VPLs), but a receiver cannot connect to a light"
   echo "  through a specular interface, so the directly visible caustic is missing: the render is"
@@ -52,9 +58,9 @@ PY
   echo "| scene | render options | size | lights | rel_l2 | rel_l1 | clamp loss | time |"
   echo "|---|---|---|---|---|---|---|---|"
   row cornell-box cb128 --method brute --resolution 128x128 --lights 20000
-  row cornell-box cb64 --method brute --resolution 64x64 --spp 16 --filter box --lights 20000
-  row veach-mis vm --method brute --resolution 128x72 --spp 16 --filter box --lights 20000
-  row water-caustic wc --method brute --resolution 64x64 --spp 16 --filter box --lights 20000
+  row cornell-box cb64 --method brute --resolution 64x64 --spp 16 --filter box --lights 5000
+  row veach-mis vm --method brute --resolution 96x54 --spp 16 --filter box --lights 5000
+  row water-caustic wc --method brute --resolution 64x64 --spp 16 --filter box --lights 5000
   if [ $full = 1 ]; then
     row cornell-box cb1024 --method brute --resolution 1024x1024 --lights 20000
   fi
@@ -67,7 +73,7 @@ PY
   echo "| scene | render options | size | lights | rel_l2 | rel_l1 | clamp loss | time |"
   echo "|---|---|---|---|---|---|---|---|"
   for c in 0 0.003 0.01 0.03 0.1; do
-    row cornell-box clamp$c --resolution 64x64 --spp 16 --filter box --lights 20000 --param clamp=$c
+    row cornell-box clamp$c --resolution 48x48 --spp 16 --filter box --lights 5000 --param clamp=$c
   done
 } > "$out.tmp"
 mv "$out.tmp" "$out"

@@ -1,6 +1,7 @@
 // `lightfarm-worker --coordinator HOST:PORT [--threads N] [--cache-dir DIR] [--token-file F]`:
 // pulls tasks until SIGTERM/SIGINT (first signal: finish the current task; second: hand it back).
 #include <pmmintrin.h>
+#include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 #include <tbb/global_control.h>
 #include <xmmintrin.h>
@@ -23,6 +24,7 @@ void OnSignal(int) { g_signals = g_signals + 1; }
 int main(int argc, char** argv) {
   _MM_SET_FLUSH_ZERO_MODE(_MM_FLUSH_ZERO_ON);
   _MM_SET_DENORMALS_ZERO_MODE(_MM_DENORMALS_ZERO_ON);
+  spdlog::set_default_logger(spdlog::stderr_color_mt("lightfarm"));  // stdout is for data
   spdlog::set_pattern("[%H:%M:%S.%e] [worker] [%l] %v");
 
   CLI::App app{"lightfarm-worker: runs render tasks leased from a lightfarm coordinator"};

@@ -34,6 +34,10 @@
 //   h ≤ 1 and h largest near the normal, so f_base ≤ f(wo, n) / (1 − E(n)); E(n) is bounded
 //   by F0 (smooth coat, exact) or 4 F0 + 0.02 (rough coat, with margin for the tabulated E).
 //
+// Bounds and totals are compared in luminance. Elements a receiver's path-depth budget excludes
+// are zero; the bounds ignore that (they stay conservative) and the representative estimate
+// stays unbiased over the representative choice.
+//
 // Parameters: error (relative error bound, default 0.02), max_cut (default 1000; unlimited
 // when error = 0, which then means "exact").
 // Stats: "cut_size" is the sum of the final cut sizes over the task's rows (stats / rows = mean
@@ -50,7 +54,6 @@
 #include "common/gather/methods.h"
 #include "common/scene/bsdf.h"
 #include "common/scene/fresnel.h"
-#include "common/scene/microfacet.h"
 
 namespace lightfarm {
 

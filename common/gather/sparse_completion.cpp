@@ -27,15 +27,22 @@
 //     uniformly over columns (g(j) + 0.1·mean g) so that a column seen only as zero (occluded on
 //     its few rows) can still reveal light elsewhere in the slice. rate ≥ 1 observes every entry.
 //  5. Completion: M ≈ X·Y, X, Y ≥ 0 of rank `rank`, by the ADM of Xu et al. 2011
-//     (common/matrix/nmf_completion.h), once per RGB channel on the same Ω (a channel has the
-//     rank of the geometry; stacking channels would add the colours to it). When every entry is
+//     (common/matrix/nmf_completion.h), once per RGB channel on the same Ω (the paper does not
+//     say; a channel has the rank of the geometry, stacking channels would add the colours to
+//     it). The solver lowers the rank until |Ω| ≥ 2 q(m + n − q) (its min_oversampling): with
+//     ~10-25 observed entries per row, q = 16 fits Ω and extrapolates noise elsewhere (measured
+//     on cornell-box 64², rel_l1 0.20 at q = 16 against 0.12 with the cap). When every entry is
 //     observed the solver returns M itself (no factorisation), so with rate=1, merge_error=0 and
 //     global_cut ≥ number of lights (every column a single light, scale 1) the result equals
 //     brute force up to the order of the double sums.
 //  6. Row sums = X·(Y·1) per channel (Sec. 3, step 5), without forming M.
 //
-// Parameters (--param): global_cut (850), merge_error (0.02), rate (0.1), rank (16),
-// coarsen_samples (8), reference_rows (8), iterations (100, the paper's cap), tolerance (1e-4).
+// Parameters (--param): global_cut (850), merge_error (0.005), rate (0.1), rank (16),
+// coarsen_samples (8), reference_rows (8; 0 disables coarsening), iterations (100, the paper's
+// cap), tolerance (1e-4).
+// merge_error was chosen on cornell-box (64² and 128², 20000 lights): 0.02 coarsens 850 nodes to
+// ~100 and leaves too few observed entries per row (rel_l1 0.18), 0.005 keeps ~200 (rel_l1
+// 0.10-0.12), 0.001 keeps ~350 and gains nothing.
 // Stats (summed over slices, so mean = stat / slices): observed_residual (per slice, the relative
 // observed-entry residual ‖P_Ω(XY − M)‖_F / ‖P_Ω(M)‖_F over the three channels), global_cut_nodes,
 // coarse_cut_nodes, observed_entries, reduced_entries (|M|), nmf_iterations (the three
@@ -43,11 +50,10 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
-#include <cstdlib>  // DIAG
-#include <Eigen/SVD>  // DIAG
 #include <cmath>
 #include <map>
 #include <queue>
+#include <set>
 #include <stdexcept>
 #include <unordered_map>
 
@@ -61,7 +67,7 @@ namespace {
 
 struct SparseCompletionSettings {
   size_t global_cut = 850;
-  double merge_error = 0.02;
+  double merge_error = 0.005;
   double rate = 0.1;
   int rank = 16;
   int coarsen_samples = 8;
@@ -265,8 +271,6 @@ class SparseCompletionGather final : public GatherMethod {
     options.rank = s_.rank;
     options.max_iterations = s_.iterations;
     options.tolerance = s_.tolerance;
-    if (std::getenv("LF_OS")) options.min_oversampling = atof(std::getenv("LF_OS"));
-    if (std::getenv("LF_PS")) options.penalty_scale = atof(std::getenv("LF_PS"));
     NmfResult completed[3];
     tbb::parallel_for(0, 3, [&](int c) {
       completed[c] = CompleteNonnegative(int(m), int(n), entries[c], options,
@@ -283,77 +287,6 @@ class SparseCompletionGather final : public GatherMethod {
       residual2 += completed[c].observed_residual * completed[c].observed_residual * channel_norm2;
       norm2 += channel_norm2;
     }
-    if (std::getenv("LF_DIAG")) {  // DIAG-BEGIN
-      MatrixCounters dummy;
-      ElementCache full(matrix, task.rows);
-      std::vector<uint64_t> req;
-      for (uint32_t j = 0; j < n; ++j)
-        for (uint32_t r = 0; r < m; ++r) req.push_back(ElementCache::Key(tree.node(coarse[j]).representative, r));
-      full.Evaluate(req, &dummy);
-      std::vector<Eigen::MatrixXd> truth(3, Eigen::MatrixXd(m, n));
-      for (uint32_t j = 0; j < n; ++j)
-        for (uint32_t r = 0; r < m; ++r) {
-          RGB v = full.Get(tree.node(coarse[j]).representative, r) * NodeScale(tree, lights, coarse[j]);
-          for (int c = 0; c < 3; ++c) truth[c](r, j) = v[c];
-        }
-      auto err = [&](const std::vector<Eigen::VectorXd>& sums) {
-        double e2 = 0, t2 = 0, e1 = 0, t1 = 0;
-        for (int c = 0; c < 3; ++c) {
-          Eigen::VectorXd t = truth[c].rowwise().sum();
-          e2 += (sums[c] - t).squaredNorm(); t2 += t.squaredNorm();
-          e1 += (sums[c] - t).cwiseAbs().sum(); t1 += t.cwiseAbs().sum();
-        }
-        char buf[64]; snprintf(buf, sizeof buf, "l2=%.4f l1=%.4f", std::sqrt(e2 / t2), e1 / t1); return std::string(buf);
-      };
-      {
-        Eigen::BDCSVD<Eigen::MatrixXd> svd(truth[1], Eigen::ComputeThinU | Eigen::ComputeThinV);
-        const auto& sv = svd.singularValues();
-        fprintf(stderr, "slice %u sv:", task.task_id);
-        for (int k = 0; k < std::min<int>(24, int(sv.size())); ++k) fprintf(stderr, " %.3g", sv(k) / sv(0));
-        fprintf(stderr, "\n");
-        for (int q : {1, 2, 4, 8, 16, 32}) {
-          if (q > sv.size()) break;
-          Eigen::MatrixXd A = svd.matrixU().leftCols(q) * sv.head(q).asDiagonal() * svd.matrixV().leftCols(q).transpose();
-          Eigen::VectorXd t = truth[1].rowwise().sum(), a = A.rowwise().sum();
-          fprintf(stderr, "  svd q=%d frob=%.4f rowsum l2=%.4f l1=%.4f\n", q, (A - truth[1]).norm() / truth[1].norm(), (a - t).norm() / t.norm(), (a - t).cwiseAbs().sum() / t.cwiseAbs().sum());
-        }
-        double mx = truth[1].maxCoeff(), mean = truth[1].mean();
-        int zeros = 0; for (Eigen::Index i = 0; i < truth[1].size(); ++i) zeros += truth[1].data()[i] == 0;
-        fprintf(stderr, "  max/mean=%.1f zeros=%.3f\n", mx / mean, double(zeros) / double(truth[1].size()));
-      }
-      for (double frac : {0.1, 0.3, 0.6, 0.99}) for (int it : {100, 1000}) {
-        Rng rr(77, 1);
-        std::vector<MatrixEntry> ent;
-        for (uint32_t r = 0; r < m; ++r) for (uint32_t j = 0; j < n; ++j) if (rr.UniformDouble() < frac) ent.push_back({r, j, float(truth[1](r, j))});
-        NmfOptions o = options; o.rank = 16; o.max_iterations = it; o.tolerance = 1e-6; 
-        NmfResult res = CompleteNonnegative(int(m), int(n), ent, o, 5);
-        Eigen::VectorXd t = truth[1].rowwise().sum(), a = FactoredRowSums(res);
-        fprintf(stderr, "  uniform frac=%.2f it=%d(%d) obsres=%.4f frob=%.4f rowsum l2=%.4f l1=%.4f\n", frac, it, res.iterations, res.observed_residual, (res.X * res.Y - truth[1]).norm() / truth[1].norm(), (a - t).norm() / t.norm(), (a - t).cwiseAbs().sum() / t.cwiseAbs().sum());
-      }
-      int mode_norm = std::getenv("LF_NORM") ? atoi(std::getenv("LF_NORM")) : 0;
-      for (int q : {4, 8, 16}) for (int it : {100, 300}) for (int norm = 0; norm <= mode_norm; ++norm) {
-        std::vector<Eigen::VectorXd> sums(3), sums_obs(3);
-        double it_total = 0;
-        for (int c = 0; c < 3; ++c) {
-          std::vector<double> rs(m, 0.0), rc(m, 0.0);
-          if (norm) {
-            double gm = 0; for (auto& e : entries[c]) { rs[e.row] += e.value; rc[e.row] += 1; gm += e.value; }
-            gm /= std::max<size_t>(1, entries[c].size());
-            for (uint32_t r = 0; r < m; ++r) rs[r] = rc[r] > 0 && rs[r] > 0 ? rs[r] / rc[r] : (gm > 0 ? gm : 1.0);
-          } else for (auto& x : rs) x = 1;
-          std::vector<MatrixEntry> ent = entries[c];
-          for (auto& e : ent) e.value = float(e.value / rs[e.row]);
-          NmfOptions o = options; o.rank = q; o.max_iterations = it;
-          NmfResult res = CompleteNonnegative(int(m), int(n), ent, o, 5);
-          it_total += res.iterations;
-          for (Eigen::Index i = 0; i < res.X.rows(); ++i) res.X.row(i) *= rs[i];
-          sums[c] = FactoredRowSums(res);
-          sums_obs[c] = sums[c];
-          for (auto& e : entries[c]) sums_obs[c](e.row) += e.value - res.X.row(e.row).dot(res.Y.col(e.col));
-        }
-        fprintf(stderr, "slice %u m=%u n=%u q=%d it=%d(%.0f) norm=%d fact %s | obs %s\n", task.task_id, m, n, q, it, it_total / 3, norm, err(sums).c_str(), err(sums_obs).c_str());
-      }
-    }  // DIAG-END
     const size_t observed = entries[0].size();
     result.stats["observed_residual"] = norm2 > 0 ? std::sqrt(residual2 / norm2) : 0.0;
     result.stats["global_cut_nodes"] = double(global.nodes.size());
@@ -389,7 +322,7 @@ class SparseCompletionGather final : public GatherMethod {
     for (uint32_t node : global.nodes) mean_intensity += double(tree.node(node).intensity_lum);
     mean_intensity /= double(global.nodes.size());
 
-    std::map<uint32_t, bool> rejected;  // parents whose pair failed the bound (final)
+    std::set<uint32_t> rejected;  // parents whose pair failed the bound (final: rows never change)
     for (;;) {
       // Candidate pairs: both children of a parent in the cut
       struct Pair {
@@ -452,7 +385,7 @@ class SparseCompletionGather final : public GatherMethod {
           cut[pair.parent] = CutNode{cost, std::move(pair.rows)};
           merged = true;
         } else {
-          rejected[pair.parent] = true;
+          rejected.insert(pair.parent);
         }
       }
       if (!merged) break;
@@ -495,8 +428,7 @@ class SparseCompletionGather final : public GatherMethod {
       mean_g += g[j];
     }
     mean_g /= double(n);
-    static const double ushare = std::getenv("LF_US") ? atof(std::getenv("LF_US")) : kUniformColumnShare;
-    for (double& w : g) w += ushare * mean_g;
+    for (double& w : g) w += kUniformColumnShare * mean_g;
 
     // Multinomial allocation over columns with room left; excess draws on a full column are
     // redrawn among the others (terminates: each round fills a column or places every draw)
@@ -555,7 +487,7 @@ class SparseCompletionGather final : public GatherMethod {
 std::unique_ptr<GatherMethod> CreateSparseCompletionGather(const OptionMap& params) {
   SparseCompletionSettings s;
   s.global_cut = size_t(params.GetInt("global_cut", 850, 1, 1LL << 32));
-  s.merge_error = params.GetDouble("merge_error", 0.02, 0.0, 1e6);
+  s.merge_error = params.GetDouble("merge_error", 0.005, 0.0, 1e6);
   s.rate = params.GetDouble("rate", 0.1, 1e-6, 1.0);
   s.rank = int(params.GetInt("rank", 16, 1, 1024));
   s.coarsen_samples = int(params.GetInt("coarsen_samples", 8, 1, 1 << 20));

@@ -55,6 +55,7 @@ class Process {
   Process& operator=(const Process&) = delete;
 
   pid_t pid() const { return pid_; }
+  std::string name;  // workers: the --name they registered with
   bool running() {
     if (exited_) return false;
     int status = 0;
@@ -154,7 +155,9 @@ inline std::unique_ptr<Process> StartWorker(const TempDir& dir, const std::strin
                                    "--poll-interval", "0.02", "--cache-dir", dir.Path(name + "-cache"),
                                    "--name", name, "--log-level", "warn"};
   argv.insert(argv.end(), extra.begin(), extra.end());
-  return std::make_unique<Process>(argv, dir.Path(name));
+  auto p = std::make_unique<Process>(argv, dir.Path(name));
+  p->name = name;
+  return p;
 }
 
 // Polls the job until `pred` holds (or it ends), returns the last status.
@@ -184,6 +187,18 @@ class StateDb {
     sqlite3_busy_timeout(db_, 5000);
   }
   ~StateDb() { sqlite3_close(db_); }
+  // First column of the first row as text ("" when there is none).
+  std::string QueryText(const std::string& sql) {
+    std::string out;
+    sqlite3_stmt* st = nullptr;
+    EXPECT_EQ(sqlite3_prepare_v2(db_, sql.c_str(), -1, &st, nullptr), SQLITE_OK) << sqlite3_errmsg(db_);
+    if (st && sqlite3_step(st) == SQLITE_ROW) {
+      const void* p = sqlite3_column_blob(st, 0);
+      out.assign(static_cast<const char*>(p ? p : ""), size_t(sqlite3_column_bytes(st, 0)));
+    }
+    sqlite3_finalize(st);
+    return out;
+  }
   std::vector<std::vector<int64_t>> Query(const std::string& sql) {
     std::vector<std::vector<int64_t>> rows;
     sqlite3_stmt* st = nullptr;
