@@ -502,7 +502,7 @@ void Coordinator::PlanJob(int64_t id) {
     stage = job.stage;
   }
   const std::string dir = SceneDir(id);
-  auto plan = std::make_shared<Plan>();
+  std::shared_ptr<Plan> plan;
   PhaseTimes times;
   std::vector<Task> tasks;
   std::string lights_sha, receivers_sha, artifact_sha;
@@ -518,7 +518,12 @@ void Coordinator::PlanJob(int64_t id) {
     }
     const RenderSettings settings = FromProto(settings_proto);
     try {
-      *plan = BuildPlan(dir + "/" + manifest.root(), settings, &times);
+      // Built in place: the LightingMatrix refers to the plan's receivers and lights, so a
+      // moved Plan would leave it dangling.
+      plan.reset(new Plan(BuildPlan(dir + "/" + manifest.root(), settings, &times)));
+      if (&plan->matrix->receivers() != &plan->receivers || &plan->matrix->lights() != &plan->lights)
+        plan->matrix = std::make_unique<LightingMatrix>(*plan->scene, plan->receivers, plan->lights,
+                                                        plan->matrix_options);
     } catch (const SceneError& e) {
       // Name the file as the user knows it: relative to the scene's directory.
       throw std::runtime_error(ReplaceAll(e.what(), dir + "/", ""));

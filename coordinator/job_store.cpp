@@ -24,7 +24,11 @@ class Stmt {
   Stmt& Bind(int64_t v) { Check(sqlite3_bind_int64(st_, ++n_, v)); return *this; }
   Stmt& Bind(int v) { return Bind(int64_t(v)); }
   Stmt& Bind(double v) { Check(sqlite3_bind_double(st_, ++n_, v)); return *this; }
-  Stmt& Bind(const std::string& v) {
+  Stmt& Bind(const std::string& v) {  // text (names, hashes, messages)
+    Check(sqlite3_bind_text(st_, ++n_, v.data(), int(v.size()), SQLITE_TRANSIENT));
+    return *this;
+  }
+  Stmt& BindBlob(const std::string& v) {  // binary (serialized protobuf)
     Check(sqlite3_bind_blob(st_, ++n_, v.data(), int(v.size()), SQLITE_TRANSIENT));
     return *this;
   }
@@ -95,7 +99,7 @@ int64_t JobStore::InsertJob(const JobRecord& j) {
   std::lock_guard lock(mu_);
   Stmt s(db_, "INSERT INTO jobs(name, priority, state, manifest, settings, created) "
               "VALUES(?, ?, ?, ?, ?, ?)");
-  s.Bind(j.name).Bind(j.priority).Bind(j.state).Bind(j.manifest).Bind(j.settings).Bind(Now()).Step();
+  s.Bind(j.name).Bind(j.priority).Bind(j.state).BindBlob(j.manifest).BindBlob(j.settings).Bind(Now()).Step();
   return sqlite3_last_insert_rowid(db_);
 }
 

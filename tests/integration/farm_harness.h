@@ -16,6 +16,10 @@
 #include <thread>
 #include <vector>
 
+#include <grpcpp/generic/generic_stub.h>
+
+#include <future>
+
 #include "common/image/image_io.h"
 #include "coordinator/render_client.h"
 #include "tests/common/test_util.h"
@@ -177,6 +181,29 @@ v1::JobStatus WaitForJob(RenderClient& client, const std::string& job, Pred pred
     std::this_thread::sleep_for(std::chrono::milliseconds(25));
   }
   return st;
+}
+
+// grpc.health.v1.Health/Check for the whole server: true when SERVING. The request is an empty
+// HealthCheckRequest; the response's field 1 (status) is SERVING = 1, encoded 08 01.
+inline bool HealthServing(const std::string& address) {
+  ChannelOptions o;
+  o.address = address;
+  grpc::GenericStub stub(MakeChannel(o));
+  grpc::ClientContext ctx;
+  ctx.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(10));
+  grpc::ByteBuffer request, response;
+  grpc::Slice empty("");
+  request = grpc::ByteBuffer(&empty, 1);
+  std::promise<grpc::Status> done;
+  stub.UnaryCall(&ctx, "/grpc.health.v1.Health/Check", grpc::StubOptions(), &request, &response,
+                 [&](grpc::Status st) { done.set_value(st); });
+  grpc::Status st = done.get_future().get();
+  if (!st.ok()) return false;
+  std::vector<grpc::Slice> slices;
+  (void)response.Dump(&slices);
+  std::string bytes;
+  for (const grpc::Slice& sl : slices) bytes.append(reinterpret_cast<const char*>(sl.begin()), sl.size());
+  return bytes == std::string("\x08\x01", 2);
 }
 
 // Read-only queries on the coordinator's state database.

@@ -10,6 +10,7 @@
 #include <thread>
 
 #include "common/farm/render_job.h"
+#include "coordinator/embedded_farm.h"
 #include "tests/integration/farm_harness.h"
 
 namespace lightfarm {
@@ -91,6 +92,24 @@ TEST(Farm, CliSubmitMatchesEmbeddedAndDirectRenderBitForBit) {
   CliResult missing = RunCli(dir, {"status", "999", "--server", coordinator.address()});
   EXPECT_NE(missing.exit_code, 0);
   EXPECT_NE(missing.err.find("NOT_FOUND"), std::string::npos) << missing.err;
+}
+
+// Every registered method, multi-stage ones included (stage artifacts combined on the
+// coordinator), gives the direct render's bits on the embedded farm.
+TEST(Farm, EveryMethodOnTheEmbeddedFarmMatchesTheDirectRender) {
+  RenderSettings s;
+  s.width = s.height = 16;
+  s.lights = 600;
+  s.seed = 11;
+  s.params = {"rows_per_slice=48"};
+  for (const std::string& method : GatherMethodNames()) {
+    s.method = method;
+    RenderOutput direct = RenderScene(CornellBox(), s);
+    EmbeddedRender farm = RenderOnEmbeddedFarm(CornellBox(), s, 2);
+    EXPECT_TRUE(SameBits(farm.image, direct.image)) << method;
+    EXPECT_EQ(farm.stats["tasks"], direct.stats["tasks"]) << method;
+    EXPECT_EQ(farm.stats["matrix"]["elements_evaluated"], direct.stats["matrix"]["elements_evaluated"]) << method;
+  }
 }
 
 TEST(Farm, KilledWorkerIsReplacedWithinOneLeaseTimeout) {
@@ -245,6 +264,7 @@ TEST(Farm, BadInputGetsPreciseErrorsAndTheCoordinatorStaysUp) {
                               "--lights", "10", "--out", dir.Path("tiny.exr")});
   EXPECT_EQ(ok.exit_code, 0) << ok.err;
   EXPECT_TRUE(coordinator.process().running());
+  EXPECT_TRUE(HealthServing(coordinator.address()));
 }
 
 TEST(Farm, OldVersionWorkerIsRefused) {
