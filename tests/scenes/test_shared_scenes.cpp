@@ -38,6 +38,24 @@ TEST(SharedScenes, CornellBoxBruteForceMatchesPathTracedReference) {
   EXPECT_EQ(out.stats["receivers"]["segments"], 0);
 }
 
+// The foundation issue's acceptance command, `lightfarm render cornell-box --method brute
+// --resolution 128x128 --lights 20000` (1 spp, the scene's gaussian filter), against the
+// resized reference. Measured (seed 0, docs/reference-accuracy.md): rel_l2 = 0.479,
+// rel_l1 = 0.140; at one sample per pixel both are dominated by aliasing at geometric edges and
+// around the light (the 16-spp test above isolates the many-light error). Tolerance: rel_l2 <
+// 0.55, rel_l1 < 0.17, mean luminance within 2%.
+TEST(SharedScenes, CornellBoxAcceptanceCommandIsWithinTolerance) {
+  RenderSettings s;
+  s.width = s.height = 128;
+  s.lights = 20000;
+  RenderOutput out = RenderScene(testing::SharedScene("cornell-box"), s);
+  Image ref = ResizeImage(ReadImage(testing::SharedDir() + "/scenes/cornell-box/reference.exr"), 128, 128);
+  ErrorMetrics m = CompareImages(ref, out.image);
+  EXPECT_LT(m.rel_l2, 0.55);
+  EXPECT_LT(m.rel_l1, 0.17);
+  EXPECT_NEAR(out.image.MeanLuminance() / ref.MeanLuminance(), 1.0, 0.02);
+}
+
 TEST(SharedScenes, WaterCausticRendersWithCausticVPLs) {
   RenderSettings s;
   s.width = s.height = 24;
