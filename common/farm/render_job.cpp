@@ -45,6 +45,25 @@ std::unique_ptr<Filter> MakeFilter(const RenderHints& h) {
 
 }  // namespace
 
+Plan::Plan(Plan&& other) noexcept { *this = std::move(other); }
+
+Plan& Plan::operator=(Plan&& other) noexcept {
+  if (this == &other) return *this;
+  scene = std::move(other.scene);
+  effects = other.effects;
+  receivers = std::move(other.receivers);
+  lights = std::move(other.lights);
+  tree = std::move(other.tree);
+  method = std::move(other.method);
+  tasks = std::move(other.tasks);
+  matrix_options = other.matrix_options;
+  clamp = other.clamp;
+  matrix.reset();
+  other.matrix.reset();
+  if (scene) matrix = std::make_unique<LightingMatrix>(*scene, receivers, lights, matrix_options);
+  return *this;
+}
+
 Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, PhaseTimes* times) {
   PhaseTimer timer(times);
   OptionMap params = OptionMap::Parse(settings.params);

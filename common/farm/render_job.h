@@ -32,6 +32,14 @@ struct RenderSettings {
 
 // Everything a gather needs, built once per job (deterministic in the job seed).
 struct Plan {
+  Plan() = default;
+  // The matrix refers to `receivers` and `lights` by address, so a moved plan rebuilds its
+  // matrix against its own members (cheap: O(rows)); copies are not allowed.
+  Plan(Plan&& other) noexcept;
+  Plan& operator=(Plan&& other) noexcept;
+  Plan(const Plan&) = delete;
+  Plan& operator=(const Plan&) = delete;
+
   std::unique_ptr<Scene> scene;
   Effects effects;
   ReceiverSet receivers;

@@ -226,3 +226,28 @@ TEST(RenderErrors, UnknownMethodAndParamAreOptionErrors) {
 
 }  // namespace
 }  // namespace lightfarm
+
+namespace lightfarm {
+namespace {
+
+// The matrix refers to the plan's receivers and lights; moving a plan must keep it valid.
+TEST(Plan, MovedPlanRendersTheSameImage) {
+  RenderSettings s;
+  s.width = s.height = 12;
+  s.lights = 300;
+  std::string scene = testing::SharedScene("cornell-box");
+  Plan original = BuildPlan(scene, s, nullptr);
+  GatherOutcome a = RunStagesLocally(original, nullptr, nullptr);
+  Plan moved(std::move(original));
+  Plan assigned;
+  assigned = std::move(moved);
+  GatherOutcome b = RunStagesLocally(assigned, nullptr, nullptr);
+  ASSERT_EQ(a.row_sums.size(), b.row_sums.size());
+  for (size_t i = 0; i < a.row_sums.size(); ++i) {
+    ASSERT_EQ(a.row_sums[i].r, b.row_sums[i].r) << i;
+    ASSERT_EQ(a.row_sums[i].g, b.row_sums[i].g) << i;
+  }
+}
+
+}  // namespace
+}  // namespace lightfarm
