@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # README command 1: installs and builds as needed, then renders the project's example scene
 # (a Cornell box from its published measurements) to out/cornell-box.{exr,png,json} with
-# lightcuts (1% of the lighting matrix; brute force would take ~10x longer).
+# lightcuts, which evaluates a small fraction of the lighting matrix (see the stats JSON).
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 bash "$root/scripts/build.sh"
