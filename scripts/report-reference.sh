@@ -62,7 +62,7 @@ PY
   row veach-mis vm --method brute --resolution 96x54 --spp 16 --filter box --lights 5000
   row water-caustic wc --method brute --resolution 64x64 --spp 16 --filter box --lights 5000
   if [ $full = 1 ]; then
-    row cornell-box cb1024 --method brute --resolution 1024x1024 --lights 20000
+    row cornell-box cb1024 --method brute --resolution 1024x1024 --lights 5000
   fi
   echo
   echo "## The geometry-term clamp on cornell-box"
