@@ -9,6 +9,8 @@
 #include <random>
 #include <string>
 
+#include "common/farm/render_job.h"
+
 namespace lightfarm::testing {
 
 // The shared data directory: $LIGHTFARM_SHARED, else <source>/../shared. A missing directory is
@@ -54,5 +56,19 @@ class TempDir {
  private:
   std::filesystem::path path_;
 };
+
+// Elements of the lighting matrix a render evaluated (stats "matrix.elements_evaluated").
+inline uint64_t Elements(const RenderOutput& out) {
+  return out.stats["matrix"]["elements_evaluated"].get<uint64_t>();
+}
+
+// Every pixel channel of img within rel (relative) of ref.
+inline void ExpectImagesNear(const Image& ref, const Image& img, float rel) {
+  ASSERT_TRUE(ref.SameSize(img));
+  for (size_t i = 0; i < ref.pixels.size(); ++i)
+    for (int c = 0; c < 3; ++c)
+      ASSERT_NEAR(img.pixels[i][c], ref.pixels[i][c], rel * std::abs(ref.pixels[i][c]) + 1e-7f)
+          << "pixel " << i << " channel " << c;
+}
 
 }  // namespace lightfarm::testing

@@ -15,6 +15,9 @@
 namespace lightfarm {
 namespace {
 
+using testing::Elements;
+using testing::ExpectImagesNear;
+
 RenderOutput Render(const std::string& scene, const std::string& method,
                     std::vector<std::string> params, size_t lights = 2000, int res = 16) {
   RenderSettings s;
@@ -26,17 +29,6 @@ RenderOutput Render(const std::string& scene, const std::string& method,
   return RenderScene(scene, s);
 }
 
-uint64_t Elements(const RenderOutput& out) {
-  return out.stats["matrix"]["elements_evaluated"].get<uint64_t>();
-}
-
-void ExpectImagesNear(const Image& ref, const Image& img, float rel) {
-  ASSERT_TRUE(ref.SameSize(img));
-  for (size_t i = 0; i < ref.pixels.size(); ++i)
-    for (int c = 0; c < 3; ++c)
-      ASSERT_NEAR(img.pixels[i][c], ref.pixels[i][c], rel * std::abs(ref.pixels[i][c]) + 1e-7f)
-          << "pixel " << i << " channel " << c;
-}
 
 TEST(Lightcuts, ZeroErrorEqualsBruteForce) {
   const std::string scene = testing::SharedScene("cornell-box");

@@ -17,6 +17,9 @@
 namespace lightfarm {
 namespace {
 
+using testing::Elements;
+using testing::ExpectImagesNear;
+
 using testing::TempDir;
 
 RenderOutput Render(const std::string& scene, const std::string& method,
@@ -34,17 +37,6 @@ double Stat(const RenderOutput& out, const char* key) {
   return out.stats["method_stats"][key].get<double>();
 }
 
-uint64_t Elements(const RenderOutput& out) {
-  return out.stats["matrix"]["elements_evaluated"].get<uint64_t>();
-}
-
-void ExpectImagesNear(const Image& ref, const Image& img, float rel) {
-  ASSERT_TRUE(ref.SameSize(img));
-  for (size_t i = 0; i < ref.pixels.size(); ++i)
-    for (int c = 0; c < 3; ++c)
-      ASSERT_NEAR(img.pixels[i][c], ref.pixels[i][c], rel * std::abs(ref.pixels[i][c]) + 1e-7f)
-          << "pixel " << i << " channel " << c;
-}
 
 // Everything observed, no coarsening, a global cut down to the leaves: the completion is
 // bypassed and every column is one light at scale 1, so the row sums are brute force's.
