@@ -65,7 +65,8 @@ void ThrowIfError(const grpc::Status& status) {
 
 std::shared_ptr<grpc::Channel> MakeChannel(const ChannelOptions& o) {
   std::shared_ptr<grpc::ChannelCredentials> creds;
-  if (o.tls) {
+  // A CA file means TLS: `--tls-ca F` alone must not fall back to plaintext (the worker did).
+  if (o.tls || !o.tls_ca.empty()) {
     grpc::SslCredentialsOptions ssl;
     if (!o.tls_ca.empty()) ssl.pem_root_certs = ReadAll(o.tls_ca);
     creds = grpc::SslCredentials(ssl);

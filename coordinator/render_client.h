@@ -31,7 +31,7 @@ void ThrowIfError(const grpc::Status& status);
 struct ChannelOptions {
   std::string address;  // host:port
   bool tls = false;
-  std::string tls_ca;   // PEM file with the root certificates; empty: the system's
+  std::string tls_ca;   // PEM file with the root certificates; empty: the system's; given: TLS
 };
 std::shared_ptr<grpc::Channel> MakeChannel(const ChannelOptions& options);
 

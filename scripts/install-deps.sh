@@ -11,7 +11,7 @@ packages=(
   libeigen3-dev libcli11-dev nlohmann-json3-dev libmetis-dev libnanovdb-dev libopenvdb-dev
   # farm
   libgrpc++-dev libgrpc-dev protobuf-compiler protobuf-compiler-grpc libprotobuf-dev
-  libsqlite3-dev libssl-dev libcpp-httplib-dev
+  libsqlite3-dev libssl-dev libcpp-httplib-dev openssl
   # tests, benchmarks, reports
   libgtest-dev libgmock-dev libbenchmark-dev gnuplot-nox
 )

@@ -68,6 +68,7 @@ class Worker {
   // Drain: finish the current task, then Run returns. hand_back: give it back immediately.
   void Stop(bool hand_back = false);
   uint64_t tasks_done() const { return tasks_done_; }
+  uint64_t tasks_cancelled() const { return tasks_cancelled_; }  // stopped because the lease was lost
 
  private:
   struct JobRuntime;
@@ -86,7 +87,7 @@ class Worker {
   uint32_t lease_timeout_ms_ = 30000;
   std::shared_ptr<JobRuntime> runtime_;  // the last job's scene and matrix
   std::atomic<bool> stop_{false}, hand_back_{false};
-  std::atomic<uint64_t> tasks_done_{0};
+  std::atomic<uint64_t> tasks_done_{0}, tasks_cancelled_{0};
   std::mutex sleep_mu_;
   std::condition_variable sleep_cv_;
 };

@@ -1,0 +1,111 @@
+// What an operator relies on besides correctness: a cancelled job frees its workers at once (the
+// running task is stopped, not run to its end), and TLS carries every RPC of workers and clients.
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <filesystem>
+
+#include "common/farm/render_job.h"
+#include "tests/integration/farm_harness.h"
+
+namespace lightfarm {
+namespace {
+
+using namespace lightfarm::testing;
+
+std::string CornellBox() { return SourcePath("scenes/cornell-box/scene.pbrt"); }
+
+RenderSettings SmallJob() {
+  RenderSettings s;
+  s.width = s.height = 16;
+  s.lights = 2000;
+  s.seed = 11;
+  s.params = {"rows_per_slice=64"};
+  return s;
+}
+
+TEST(FarmOperations, CancellingAJobStopsItsRunningTaskOnTheWorker) {
+  TempDir dir;
+  CoordinatorProcess coordinator(dir, dir.Path("state"), {"--lease-timeout", "2"});
+  auto worker = StartWorker(dir, coordinator.address());
+  RenderClient client = coordinator.Client();
+  const v1::SceneManifest scene = client.UploadScene(CornellBox(), true);
+
+  // One task of 128² receivers × 10^5 lights, brute force, on one thread: minutes of work.
+  RenderSettings big;
+  big.width = big.height = 128;
+  big.lights = 100000;
+  big.params = {"rows_per_slice=1000000"};
+  const std::string long_job = client.Submit(scene, big, 0, "long");
+  StateDb db(dir.Path("state") + "/state.sqlite");
+  const auto leased = [&] {
+    return db.Query("SELECT COUNT(*) FROM attempts WHERE ended IS NULL AND job_id = " + long_job)[0][0] > 0;
+  };
+  const auto wait_end = std::chrono::steady_clock::now() + std::chrono::seconds(120);
+  while (!leased() && std::chrono::steady_clock::now() < wait_end)
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  ASSERT_TRUE(leased()) << "the long task was never leased";
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));  // let the worker get into the gather
+  EXPECT_EQ(client.Cancel(long_job).state(), v1::JOB_STATE_CANCELLED);
+
+  // The only worker must be free for the next job long before the long task could have ended:
+  // its task stops at the next heartbeat (a quarter of the lease timeout) and oneTBB chunk.
+  const auto cancelled_at = std::chrono::steady_clock::now();
+  const std::string next_job = client.Submit(scene, SmallJob(), 0, "next");
+  const v1::JobStatus st = WaitForJob(client, next_job, [](const v1::JobStatus&) { return false; }, 120);
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - cancelled_at).count();
+  ASSERT_EQ(st.state(), v1::JOB_STATE_DONE) << st.error();
+  // Running to the end would take ~10^5 · 128² ≈ 1.6·10^9 shadow rays on one thread (minutes).
+  EXPECT_LT(seconds, 30.0) << "the worker kept running the cancelled task";
+  EXPECT_TRUE(worker->running());
+  EXPECT_EQ(client.GetJob(long_job).state(), v1::JOB_STATE_CANCELLED);
+}
+
+// Self-signed certificate for 127.0.0.1 made with the openssl command line tool.
+void MakeCertificate(const TempDir& dir) {
+  const std::string cmd = "openssl req -x509 -newkey rsa:2048 -nodes -days 1 -subj /CN=localhost"
+                          " -addext subjectAltName=IP:127.0.0.1,DNS:localhost -keyout " +
+                          dir.Path("key.pem") + " -out " + dir.Path("cert.pem") + " >" +
+                          dir.Path("openssl.log") + " 2>&1";
+  ASSERT_EQ(std::system(cmd.c_str()), 0) << Slurp(dir.Path("openssl.log"));
+}
+
+TEST(FarmOperations, TlsCarriesWorkersAndClientsAndRefusesPlaintext) {
+  TempDir dir;
+  MakeCertificate(dir);
+  if (::testing::Test::HasFatalFailure()) return;
+  CoordinatorProcess coordinator(dir, dir.Path("state"),
+                                 {"--tls-cert", dir.Path("cert.pem"), "--tls-key", dir.Path("key.pem")});
+  auto worker = StartWorker(dir, coordinator.address(), {"--tls-ca", dir.Path("cert.pem")});
+
+  const std::vector<std::string> job = {"--resolution", "16x16", "--lights", "2000", "--seed", "11",
+                                        "--param", "rows_per_slice=64", "--method", "brute"};
+  std::vector<std::string> submit = {"submit", CornellBox(), "--server", coordinator.address(), "--tls-ca",
+                                     dir.Path("cert.pem"), "--wait", "--quiet", "--out", dir.Path("tls.exr")};
+  submit.insert(submit.end(), job.begin(), job.end());
+  CliResult r = RunCli(dir, submit);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const RenderOutput direct = RenderScene(CornellBox(), [] {
+    RenderSettings s = SmallJob();
+    s.method = "brute";
+    return s;
+  }());
+  EXPECT_TRUE(SameBits(ReadImage(dir.Path("tls.exr")), direct.image));
+
+  // A plaintext client gets nowhere (the handshake fails: UNAVAILABLE), and the server is fine.
+  RenderClient plain = coordinator.Client();
+  try {
+    plain.ListJobs();
+    ADD_FAILURE() << "a plaintext client was served by a TLS coordinator";
+  } catch (const RpcError& e) {
+    EXPECT_EQ(e.code(), grpc::StatusCode::UNAVAILABLE) << e.what();
+  }
+  // A client that does not trust the certificate is refused too.
+  std::vector<std::string> untrusted = {"status", "1", "--server", coordinator.address(), "--tls"};
+  CliResult u = RunCli(dir, untrusted);
+  EXPECT_NE(u.exit_code, 0);
+  EXPECT_TRUE(coordinator.process().running());
+}
+
+}  // namespace
+}  // namespace lightfarm
