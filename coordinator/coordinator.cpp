@@ -261,6 +261,56 @@ JobResult Coordinator::GetResult(const std::string& job_id) {
   return JobResult{job.stats_json, blobs_->Path(job.result_sha)};
 }
 
+bool Coordinator::Preview(const std::string& job_id, uint64_t have_tiles, JobPreview* out) {
+  std::lock_guard compute(preview_mu_);
+  std::shared_ptr<Plan> plan;
+  std::vector<std::pair<Bytes, std::string>> done;  // (task spec, result blob) of finished tiles
+  int64_t id = 0;
+  {
+    std::lock_guard lock(mu_);
+    Job& job = FindJob(job_id);
+    if (job.state != v1::JOB_STATE_RUNNING || job.stage + 1 != job.stage_count || !job.plan) return false;
+    if (job.tasks_done <= have_tiles) return false;
+    if (job.preview && job.preview->tiles == job.tasks_done) {
+      *out = *job.preview;
+      return true;
+    }
+    plan = job.plan;
+    id = job.id;
+    for (const Task& t : job.tasks)
+      if (t.state == TaskStateCode::kDone) done.emplace_back(t.spec, t.result_sha);
+  }
+  // Assemble outside the lock: the tiles' row sums into a film, unfinished rows black.
+  std::vector<RGBAccum> rows(plan->matrix->rows());
+  for (const auto& [spec_bytes, sha] : done) {
+    const SubMatrixTask spec = DeserializeTask(spec_bytes);
+    const TaskOutput result = DeserializeTaskOutput(blobs_->Get(sha));
+    for (size_t i = 0; i < spec.rows.size() && i < result.row_sums.size(); ++i)
+      if (spec.rows[i] < rows.size()) rows[spec.rows[i]] = result.row_sums[i];
+  }
+  uint64_t nan_samples = 0;
+  Image image = AssembleImage(*plan, rows, &nan_samples);
+  const double shrink = std::min(1.0, double(JobPreview::kMaxSide) / std::max(image.width, image.height));
+  auto preview = std::make_shared<JobPreview>();
+  preview->width = std::max(1, int(image.width * shrink + 0.5));
+  preview->height = std::max(1, int(image.height * shrink + 0.5));
+  preview->tiles = done.size();
+  if (preview->width != image.width || preview->height != image.height)
+    image = ResizeImage(image, preview->width, preview->height);
+  const std::string path = options_.state_dir + "/jobs/" + std::to_string(id) + "/preview.png";
+  fs::create_directories(fs::path(path).parent_path());
+  WritePNG(path, image);
+  std::ifstream f(path, std::ios::binary);
+  preview->png.assign(std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>());
+  {
+    std::lock_guard lock(mu_);
+    auto it = jobs_.find(id);
+    if (it != jobs_.end()) it->second.preview = preview;
+  }
+  *out = *preview;
+  return true;
+}
+
 // --- worker API ---------------------------------------------------------------------------------
 
 std::string Coordinator::RegisterWorker(const std::string& name, uint32_t protocol_version,

@@ -63,6 +63,14 @@ struct LeaseGrant {
   std::string artifact_sha;
 };
 
+// A preview of a running job's final stage: the film of the tiles finished so far.
+struct JobPreview {
+  std::string png;       // tone-mapped sRGB, at most kMaxSide pixels a side
+  int width = 0, height = 0;
+  uint64_t tiles = 0;    // final-stage tasks it shows
+  static constexpr int kMaxSide = 256;
+};
+
 struct JobResult {
   std::string stats_json;
   std::string exr_path;
@@ -93,6 +101,9 @@ class Coordinator {
   std::vector<v1::JobStatus> ListJobs();
   v1::JobStatus Cancel(const std::string& job_id);
   JobResult GetResult(const std::string& job_id);
+  // The preview of a job in its final stage when more than `have_tiles` tiles are done; false
+  // when there is nothing newer (or the job is not in its final stage). Shared by all watchers.
+  bool Preview(const std::string& job_id, uint64_t have_tiles, JobPreview* out);
 
   // --- worker API ---
   std::string RegisterWorker(const std::string& name, uint32_t protocol_version,
@@ -140,6 +151,7 @@ class Coordinator {
     uint64_t attempts_total = 0, completions_total = 0;
     bool advancing = false;
     std::string result_sha, stats_json;
+    std::shared_ptr<const JobPreview> preview;  // the latest one computed
   };
   struct LeaseRef {
     int64_t job;
@@ -166,6 +178,7 @@ class Coordinator {
   std::unique_ptr<BlobStore> blobs_;
   std::unique_ptr<ThreadPool> planner_;
   std::mutex mu_;
+  std::mutex preview_mu_;  // one preview computed at a time (they are throttled per watcher)
   std::map<int64_t, Job> jobs_;
   std::set<std::string> workers_;
   std::atomic<bool> draining_{false};

@@ -200,7 +200,7 @@ v1::JobStatus RenderClient::Cancel(const std::string& job_id) {
 
 v1::JobStatus RenderClient::Watch(const std::string& job_id,
                                   const std::function<void(const v1::JobStatus&)>& on_update,
-                                  double max_wait_s) {
+                                  double max_wait_s, double preview_interval_s) {
   const auto give_up = std::chrono::steady_clock::now() +
                        std::chrono::milliseconds(int64_t(max_wait_s * 1000.0));
   int backoff_ms = 100;
@@ -208,6 +208,10 @@ v1::JobStatus RenderClient::Watch(const std::string& job_id,
   for (;;) {
     v1::GetJobRequest req;
     req.set_job_id(job_id);
+    if (preview_interval_s > 0) {
+      req.set_preview(true);
+      req.set_preview_interval_s(preview_interval_s);
+    }
     grpc::ClientContext ctx;
     Prepare(&ctx, max_wait_s);
     auto reader = stub_->WatchJob(&ctx, req);

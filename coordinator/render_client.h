@@ -55,10 +55,11 @@ class RenderClient {
   std::vector<v1::JobStatus> ListJobs();
   v1::JobStatus Cancel(const std::string& job_id);
   // Follows the job until it ends, calling on_update for every status; reconnects (with the
-  // same overall deadline) when the coordinator goes away and comes back.
+  // same overall deadline) when the coordinator goes away and comes back. With
+  // preview_interval_s > 0 the statuses carry a preview PNG of the finished tiles at most that often.
   v1::JobStatus Watch(const std::string& job_id,
                       const std::function<void(const v1::JobStatus&)>& on_update,
-                      double max_wait_s = 7 * 24 * 3600.0);
+                      double max_wait_s = 7 * 24 * 3600.0, double preview_interval_s = 0);
   // The finished job's EXR bytes and stats JSON.
   void Fetch(const std::string& job_id, std::string* exr, std::string* stats_json);
 

@@ -151,7 +151,12 @@ class WatchHub {
 
 class WatchReactor : public grpc::ServerWriteReactor<v1::JobStatus> {
  public:
-  WatchReactor(WatchHub* hub, std::string job_id) : hub_(hub), job_id_(std::move(job_id)) {
+  WatchReactor(WatchHub* hub, const v1::GetJobRequest& request)
+      : hub_(hub),
+        job_id_(request.job_id()),
+        preview_(request.preview()),
+        preview_interval_(std::chrono::duration<double>(
+            request.preview_interval_s() > 0 ? std::clamp(request.preview_interval_s(), 0.25, 3600.0) : 2.0)) {
     hub_->Add(this);
   }
   // Called by the hub thread.
@@ -179,6 +184,23 @@ class WatchReactor : public grpc::ServerWriteReactor<v1::JobStatus> {
     last_ = key;
     polls_since_write_ = 0;
     final_ = IsTerminal(st.state());
+    // Previews are made on this (the hub's) thread, never on a gRPC thread; the coordinator
+    // shares the latest one between watchers.
+    const auto now = std::chrono::steady_clock::now();
+    if (preview_ && !final_ && now - last_preview_ >= preview_interval_) {
+      JobPreview p;
+      grpc::Status ps = Guard([&] {
+        if (hub_->coordinator().Preview(job_id_, preview_tiles_, &p)) {
+          st.set_preview_png(p.png);
+          st.set_preview_width(uint32_t(p.width));
+          st.set_preview_height(uint32_t(p.height));
+          st.set_preview_tiles(p.tiles);
+          preview_tiles_ = p.tiles;
+          last_preview_ = now;
+        }
+      });
+      if (!ps.ok()) spdlog::warn("preview of job {}: {}", job_id_, ps.error_message());
+    }
     status_ = st;
     writing_ = true;
     StartWrite(&status_);
@@ -200,6 +222,10 @@ class WatchReactor : public grpc::ServerWriteReactor<v1::JobStatus> {
  private:
   WatchHub* hub_;
   std::string job_id_;
+  bool preview_ = false;
+  std::chrono::duration<double> preview_interval_;
+  std::chrono::steady_clock::time_point last_preview_{};
+  uint64_t preview_tiles_ = 0;
   std::recursive_mutex mu_;  // a reaction may run inline inside StartWrite/Finish
   v1::JobStatus status_;
   std::string last_;
@@ -377,7 +403,7 @@ class FarmServer::RenderServiceImpl final : public v1::RenderService::CallbackSe
   grpc::ServerWriteReactor<v1::JobStatus>* WatchJob(grpc::CallbackServerContext* ctx,
                                                    const v1::GetJobRequest* req) override {
     if (!Authorized(token_, ctx)) return new RejectWriteReactor<v1::JobStatus>(kUnauthenticated);
-    return new WatchReactor(hub_, req->job_id());
+    return new WatchReactor(hub_, *req);
   }
 
   grpc::ServerWriteReactor<v1::ResultChunk>* FetchResult(grpc::CallbackServerContext* ctx,

@@ -61,6 +61,54 @@ TEST(FarmOperations, CancellingAJobStopsItsRunningTaskOnTheWorker) {
   EXPECT_EQ(client.GetJob(long_job).state(), v1::JOB_STATE_CANCELLED);
 }
 
+TEST(FarmOperations, WatchPreviewsShowMoreFinishedTilesAsTheJobRuns) {
+  TempDir dir;
+  CoordinatorProcess coordinator(dir, dir.Path("state"), {});
+  auto worker = StartWorker(dir, coordinator.address());
+  RenderClient client = coordinator.Client();
+  RenderSettings s;
+  s.width = s.height = 64;
+  s.lights = 20000;
+  s.params = {"rows_per_slice=64"};  // 64 tiles
+  const std::string job = client.Submit(client.UploadScene(CornellBox(), true), s, 0, "preview");
+  // The CLI keeps a PNG file updated while it follows the job.
+  Process cli_watch({LIGHTFARM_CLI_PATH, "watch", job, "--server", coordinator.address(), "--preview",
+                     dir.Path("w.png"), "--preview-interval", "0.25"},
+                    dir.Path("cli-watch"));
+
+  struct Seen {
+    uint64_t tiles;
+    size_t lit_pixels;
+  };
+  std::vector<Seen> previews;
+  int index = 0;
+  const v1::JobStatus last = client.Watch(job, [&](const v1::JobStatus& st) {
+    if (st.preview_png().empty()) return;
+    const std::string path = dir.Path("preview-" + std::to_string(index++) + ".png");
+    std::ofstream(path, std::ios::binary) << st.preview_png();
+    const Image img = ReadImage(path);
+    EXPECT_EQ(img.width, 64);
+    EXPECT_EQ(img.height, 64);
+    EXPECT_EQ(st.preview_width(), 64u);
+    EXPECT_LE(st.preview_tiles(), st.tasks_total());
+    size_t lit = 0;
+    for (const RGB& p : img.pixels) lit += p.r + p.g + p.b > 0;
+    previews.push_back({st.preview_tiles(), lit});
+  }, 300, 0.25);
+  ASSERT_EQ(last.state(), v1::JOB_STATE_DONE) << last.error();
+  ASSERT_GE(previews.size(), 2u) << "a 64-tile job on one worker thread sent fewer than two previews";
+  for (size_t i = 1; i < previews.size(); ++i) {
+    EXPECT_GT(previews[i].tiles, previews[i - 1].tiles);  // only newer previews are sent
+    EXPECT_GE(previews[i].lit_pixels, previews[i - 1].lit_pixels);
+  }
+  EXPECT_LT(previews.front().lit_pixels, size_t(64 * 64));  // the first one is partial
+
+  EXPECT_EQ(cli_watch.Wait(60), 0) << cli_watch.err();
+  ASSERT_TRUE(std::filesystem::exists(dir.Path("w.png")));
+  EXPECT_EQ(ReadImage(dir.Path("w.png")).width, 64);
+  EXPECT_FALSE(std::filesystem::exists(dir.Path("w.png.part")));
+}
+
 // Self-signed certificate for 127.0.0.1 made with the openssl command line tool.
 void MakeCertificate(const TempDir& dir) {
   const std::string cmd = "openssl req -x509 -newkey rsa:2048 -nodes -days 1 -subj /CN=localhost"
