@@ -58,11 +58,19 @@ bool ColumnCompletion::Add(const Eigen::VectorXd& column) {
 void ColumnCompletion::Factor() const {
   if (factored_) return;
   factored_ = true;
+  q_.resize(Eigen::Index(observed_.size()), 0);
+  r_.resize(0, 0);
+  permutation_.resize(0);
   if (size() == 0 || observed_.empty() || observes_all_) return;
   Eigen::MatrixXd sub(Eigen::Index(observed_.size()), basis_.cols());
   for (size_t r = 0; r < observed_.size(); ++r) sub.row(Eigen::Index(r)) = basis_.row(observed_[r]);
-  factor_.setThreshold(options_.rank_tolerance);
-  factor_.compute(sub);
+  Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(sub.rows(), sub.cols());
+  qr.setThreshold(options_.rank_tolerance);
+  qr.compute(sub);
+  const Eigen::Index rank = qr.rank();
+  q_ = qr.householderQ() * Eigen::MatrixXd::Identity(sub.rows(), rank);
+  r_ = qr.matrixR().topLeftCorner(rank, rank).triangularView<Eigen::Upper>();
+  permutation_ = qr.colsPermutation().indices().head(rank);
 }
 
 ColumnProjection ColumnCompletion::Project(const Eigen::VectorXd& observed_values) const {
@@ -78,21 +86,19 @@ ColumnProjection ColumnCompletion::Project(const Eigen::VectorXd& observed_value
     p.residual_l1 = p.observed_l1;
     return p;
   }
-  // Huo 2016, Eq. 13: e = argmin ‖U_Ω e − l_Ω‖₂ (minimum norm when U_Ω is rank deficient).
-  Eigen::VectorXd e;
+  // Huo 2016, Eq. 13: e = argmin ‖U_Ω e − l_Ω‖₂, restricted to U_Ω's numerical rank
   if (observes_all_) {
     p.rank = int(size());
-    e = basis_.transpose() * values;
-  } else {
-    p.rank = int(factor_.rank());
-    e = factor_.solve(values);
+    p.coefficients = basis_.transpose() * values;
+    p.residual_l1 = (values - basis_ * p.coefficients).lpNorm<1>();
+    return p;
   }
-  if (!e.allFinite()) e.setZero();  // cannot happen with a finite U and l; never propagate
-  p.coefficients = e;
-  double residual = 0;
-  for (size_t r = 0; r < observed_.size(); ++r)
-    residual += std::abs(values(Eigen::Index(r)) - basis_.row(observed_[r]).dot(e));
-  p.residual_l1 = residual;
+  p.rank = int(q_.cols());
+  const Eigen::VectorXd c = q_.transpose() * values;
+  const Eigen::VectorXd y = r_.triangularView<Eigen::Upper>().solve(c);
+  if (y.allFinite())  // cannot fail with pivots above the threshold; never propagate NaN
+    for (Eigen::Index i = 0; i < y.size(); ++i) p.coefficients(permutation_(i)) = y(i);
+  p.residual_l1 = (values - q_ * c).lpNorm<1>();
   return p;
 }
 

@@ -15,11 +15,13 @@
 // ‖UᵀU − I‖ at rounding level for any insertion order; a column whose residual after the two
 // passes is below drop_tolerance·‖column‖ (zero, or dependent on U to that precision) is not
 // added. The least squares of Eq. 13 never forms (U_ΩᵀU_Ω)⁻¹: U_Ω is factored once per (Ω, U)
-// by a rank-revealing complete orthogonal decomposition (column-pivoted Householder QR followed by
-// an RQ step, Eigen's CompleteOrthogonalDecomposition), with rank threshold rank_tolerance
-// relative to the largest pivot, which returns the minimum-norm least-squares solution: bounded
-// coefficients when U_Ω is rank deficient (|Ω| < k, repeated or zero rows, a basis direction
-// that vanishes on Ω). Everything is double: elements span many orders of magnitude.
+// by Householder QR with column pivoting, U_Ω Π = Q R, whose numerical rank r counts the pivots
+// |R_ii| above rank_tolerance · |R_00|. The solution keeps the r pivoted columns,
+// e_Π = R_r⁻¹ Q_rᵀ l_Ω (back substitution) and 0 for the others: the basic least-squares
+// solution, bounded by ‖l_Ω‖ / (rank_tolerance · |R_00|) when U_Ω is rank deficient (|Ω| < k,
+// repeated or zero rows, a basis direction that vanishes on Ω). The thin Q_r is formed once per
+// factorisation so that a projection costs two matrix-vector products. Everything is double:
+// elements span many orders of magnitude.
 #pragma once
 
 #include <cstdint>
@@ -36,7 +38,7 @@ struct ColumnCompletionOptions {
   // not added to U.
   double drop_tolerance = 1e-9;
   // Pivots of U_Ω below this fraction of the largest are treated as zero (rank of U_Ω).
-  double rank_tolerance = 1e-10;
+  double rank_tolerance = 1e-8;
 };
 
 // The projection of a partially observed column onto U_Ω (Huo 2016, Eq. 13: e = E_Ω(l_Ω)).
@@ -86,7 +88,10 @@ class ColumnCompletion {
   Eigen::VectorXd basis_sums_;    // Σ_i U(i, j) per column j
   std::vector<uint32_t> observed_;
   bool observes_all_ = false;  // Ω = (0, 1, …, length − 1)
-  mutable Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd> factor_;  // of U_Ω
+  // U_Ω Π = Q R, kept as its rank-r parts
+  mutable Eigen::MatrixXd q_;  // |Ω| × r, orthonormal columns
+  mutable Eigen::MatrixXd r_;  // r × r, upper triangular
+  mutable Eigen::VectorXi permutation_;  // Π: column i of Q R is column permutation_(i) of U_Ω
   mutable bool factored_ = false;
 };
 
