@@ -155,9 +155,9 @@ TEST(ColumnCompletion, DegenerateObservationsGiveFiniteBoundedProjections) {
     EXPECT_TRUE(p.coefficients.allFinite()) << what;
     EXPECT_TRUE(std::isfinite(p.residual_l1)) << what;
     EXPECT_LE(p.rank, std::min<int>(k, int(omega.size()))) << what;
-    // Minimum-norm least squares: the projection never has more energy than the data allow
-    // (‖U_Ω e‖ ≤ ‖l_Ω‖), and its coefficients stay within the column's own (‖e‖ ≤ ‖l‖ = ‖Uᵀl‖
-    // when the rank-revealing solver keeps only well-conditioned directions; a 1e4 margin)
+    // Least squares: the fit on Ω is an orthogonal projection, never more energy than the data
+    // (‖U_Ω e‖ ≤ ‖l_Ω‖); the rank-revealing solver keeps only directions with pivots above the
+    // tolerance, so the coefficients stay near the column's own (‖Uᵀl‖ = ‖l‖; a 1e4 margin)
     EXPECT_LE(p.coefficients.norm(), 1e4 * column.norm()) << what;
     const Eigen::VectorXd rebuilt = cc.Reconstruct(p.coefficients);
     EXPECT_TRUE(rebuilt.allFinite()) << what;
