@@ -42,9 +42,10 @@
 // brute force's up to rounding (tests/unit/test_adaptive_completion.cpp).
 //
 // Parameters (--param): columns (K, 10), rho (0.1), sigma (0.005), beta (0.01), omega_per_basis
-// (2; see 1b), rank_tolerance (0.1; see 1d). Randomness: Ω from (seed, stage, task, kRowSample, draw number), a node's columns
-// from (seed, stage, task, kColumnSample, node index); the slice is processed in one deterministic
-// order and entries are evaluated in fixed chunks, so the bits do not depend on threads.
+// (2; see 1b), rank_tolerance (0.1; see 1d). Randomness: Ω from (seed, stage, task, kRowSample,
+// draw number), a node's columns from (seed, stage, task, kColumnSample, node index); the slice
+// is processed in one deterministic order and entries are evaluated in fixed chunks, so the bits
+// do not depend on threads or on which worker runs the slice.
 // Stats (summed over slices): columns_full (sampled on every row), columns_dropped (of those, not
 // added to U: dependent to drop tolerance), columns_completed (from Ω), basis_size, nodes_split,
 // cut_nodes, omega_redraws, speculative_entries (entries evaluated on an Ω redrawn before they
@@ -67,11 +68,11 @@ namespace lightfarm {
 namespace {
 
 struct AdaptiveCompletionSettings {
-  int columns_per_node = 10;  // K, Huo 2016 Sec. 5.1.2
-  double rho = 0.1;           // |Ω| = ⌊ρm⌋ rows, Sec. 5.1.1
-  double sigma = 0.005;       // Eq. 16, Sec. 6.2
-  double beta = 0.01;         // Eq. 17
-  double omega_per_basis = 2;  // |Ω| ≥ this · k rows (deviation 1b)
+  int columns_per_node = 10;    // K, Huo 2016 Sec. 5.1.2
+  double rho = 0.1;             // |Ω| = ⌊ρm⌋ rows, Sec. 5.1.1
+  double sigma = 0.005;         // Eq. 16, Sec. 6.2
+  double beta = 0.01;           // Eq. 17
+  double omega_per_basis = 2;   // |Ω| ≥ this · k rows (deviation 1b)
   double rank_tolerance = 0.1;  // of U_Ω, relative to its largest pivot (see 1d)
 };
 
@@ -113,8 +114,8 @@ double& Channel(RGBAccum* a, int c) { return c == 0 ? a->r : (c == 1 ? a->g : a-
 // A node of the cut with its estimate (Eq. 14) and error (Eq. 17).
 struct NodeEstimate {
   uint32_t node = 0;
-  Eigen::VectorXd e;  // e(node), coordinates in U
-  double error = 0;   // r(node)
+  Eigen::VectorXd e;   // e(node), coordinates in U
+  double error = 0;    // r(node)
   bool exact = false;  // every light of the node evaluated
 };
 
@@ -122,8 +123,8 @@ struct NodeEstimate {
 struct NodeColumns {
   uint32_t node = 0;
   bool exact = false;
-  std::vector<uint32_t> draws;     // sampled lights, with repeats (sampled nodes)
-  std::vector<double> inv_pdf;     // 1/pdf per draw
+  std::vector<uint32_t> draws;  // sampled lights, with repeats (sampled nodes)
+  std::vector<double> inv_pdf;  // 1/pdf per draw
   std::vector<std::pair<uint32_t, double>> weighted;  // distinct lights, weight in e(node)
 };
 
@@ -133,7 +134,12 @@ class SliceSolver {
   SliceSolver(const LightingMatrix& matrix, const LightTree& tree,
               const std::vector<double>& prefix, const SubMatrixTask& task,
               const AdaptiveCompletionSettings& s, TaskOutput* out)
-      : matrix_(matrix), tree_(tree), prefix_(prefix), task_(task), s_(s), out_(out),
+      : matrix_(matrix),
+        tree_(tree),
+        prefix_(prefix),
+        task_(task),
+        s_(s),
+        out_(out),
         m_(uint32_t(task.rows.size())),
         completion_(3 * size_t(m_), ColumnCompletionOptions{.rank_tolerance = s.rank_tolerance}) {}
 
@@ -195,9 +201,8 @@ class SliceSolver {
     st["omega_redraws"] = double(omega_redraws_);
     st["speculative_entries"] = double(speculative_entries_);
     st["negative_channels"] = double(negative);
-    st["observed_residual"] = completed_observed_l1_ > 0
-                                  ? completed_residual_l1_ / completed_observed_l1_
-                                  : 0.0;
+    st["observed_residual"] =
+        completed_observed_l1_ > 0 ? completed_residual_l1_ / completed_observed_l1_ : 0.0;
   }
 
  private:
@@ -390,7 +395,8 @@ class SliceSolver {
     Eigen::VectorXd full(3 * Eigen::Index(m_));
     for (uint32_t r = 0; r < m_; ++r)
       if (omega_index[r] >= 0)
-        for (int c = 0; c < 3; ++c) full(3 * Eigen::Index(r) + c) = double(on_omega[omega_index[r]][c]);
+        for (int c = 0; c < 3; ++c)
+          full(3 * Eigen::Index(r) + c) = double(on_omega[omega_index[r]][c]);
     for (size_t i = 0; i < local.size(); ++i)
       for (int c = 0; c < 3; ++c) full(3 * Eigen::Index(local[i]) + c) = double(values[i][c]);
     return full;

@@ -120,8 +120,8 @@ double ColumnCompletion::ReconstructedSum(const Eigen::VectorXd& coefficients) c
   return basis_sums_.head(coefficients.size()).dot(coefficients);
 }
 
-bool FailsEnergyTest(const ColumnProjection& projection, double column_energy,
-                     double total_energy, double sigma) {
+bool FailsEnergyTest(const ColumnProjection& projection, double column_energy, double total_energy,
+                     double sigma) {
   // Huo 2016, Eq. 16 (row-space form, see the header)
   const double lost = projection.LossFraction() * std::abs(column_energy);
   return lost > sigma * std::abs(total_energy);

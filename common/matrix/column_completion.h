@@ -24,12 +24,11 @@
 // elements span many orders of magnitude.
 #pragma once
 
+#include <Eigen/Core>
+#include <Eigen/QR>
 #include <cstdint>
 #include <span>
 #include <vector>
-
-#include <Eigen/Core>
-#include <Eigen/QR>
 
 namespace lightfarm {
 
@@ -84,13 +83,13 @@ class ColumnCompletion {
   void Factor() const;  // caches the decomposition of U_Ω; U and Ω are unchanged
 
   ColumnCompletionOptions options_;
-  Eigen::MatrixXd basis_;         // length × k, orthonormal columns
-  Eigen::VectorXd basis_sums_;    // Σ_i U(i, j) per column j
+  Eigen::MatrixXd basis_;       // length × k, orthonormal columns
+  Eigen::VectorXd basis_sums_;  // Σ_i U(i, j) per column j
   std::vector<uint32_t> observed_;
   bool observes_all_ = false;  // Ω = (0, 1, …, length − 1)
   // U_Ω Π = Q R, kept as its rank-r parts
-  mutable Eigen::MatrixXd q_;  // |Ω| × r, orthonormal columns
-  mutable Eigen::MatrixXd r_;  // r × r, upper triangular
+  mutable Eigen::MatrixXd q_;            // |Ω| × r, orthonormal columns
+  mutable Eigen::MatrixXd r_;            // r × r, upper triangular
   mutable Eigen::VectorXi permutation_;  // Π: column i of Q R is column permutation_(i) of U_Ω
   mutable bool factored_ = false;
 };
@@ -103,7 +102,7 @@ class ColumnCompletion {
 // orthogonal to U on Ω has e = 0 and would always pass although it is exactly the column U is
 // missing, so the weight here is the column's observed energy, in the same (row) space as the
 // total. With σ = 0 every column that loses anything fails; a column zero on Ω never does.
-bool FailsEnergyTest(const ColumnProjection& projection, double column_energy,
-                     double total_energy, double sigma);
+bool FailsEnergyTest(const ColumnProjection& projection, double column_energy, double total_energy,
+                     double sigma);
 
 }  // namespace lightfarm

@@ -83,7 +83,8 @@ TEST(AdaptiveCompletion, FullSamplingEqualsBruteForceOnPointLightsBehindAWall) {
     RenderOutput exact = Render(scene, "adaptive-completion", params, 40, 32);
     ExpectImagesNear(brute.image, exact.image, 1e-5f);
     // Columns on every row: the completed ones are exact (nothing lost on Ω = every row)
-    EXPECT_EQ(Stat(exact, "columns_full"), Stat(exact, "basis_size") + Stat(exact, "columns_dropped"));
+    EXPECT_EQ(Stat(exact, "columns_full"),
+              Stat(exact, "basis_size") + Stat(exact, "columns_dropped"));
     EXPECT_EQ(Stat(exact, "negative_channels"), 0.0);
     EXPECT_LE(Elements(exact), Elements(brute));
   }
@@ -126,6 +127,10 @@ TEST(AdaptiveCompletion, DefaultSettingsApproximateAtAFractionOfTheCost) {
   EXPECT_GT(Stat(tighter, "columns_full"), Stat(ac, "columns_full"));
   EXPECT_GT(Elements(tighter), Elements(ac));
   EXPECT_LT(CompareImages(brute.image, tighter.image).rel_l1, 0.8 * m.rel_l1);
+  // A looser split test (Eq. 17) stops the traversal earlier: fewer nodes, fewer elements
+  RenderOutput coarser = Render(scene, "adaptive-completion", {"beta=0.05"}, 5000, 32);
+  EXPECT_LT(Stat(coarser, "nodes_split"), 0.7 * Stat(ac, "nodes_split"));
+  EXPECT_LT(Elements(coarser), Elements(ac));
 }
 
 TEST(AdaptiveCompletion, SameBitsWithOneAndTwoThreads) {
@@ -152,8 +157,8 @@ TEST(AdaptiveCompletion, SameBitsWithOneAndTwoThreads) {
 TEST(AdaptiveCompletion, SameBitsWhateverTheTaskOrder) {
   const std::string scene = testing::SharedScene("cornell-box");
   PhaseTimes times;
-  const Plan plan = BuildPlan(
-      scene, Settings("adaptive-completion", {"rows_per_slice=200"}, 2000, 24), &times);
+  const Plan plan =
+      BuildPlan(scene, Settings("adaptive-completion", {"rows_per_slice=200"}, 2000, 24), &times);
   ASSERT_GT(plan.tasks.size(), 2u);
   const GatherContext ctx = plan.context();
   std::vector<TaskOutput> forward(plan.tasks.size()), backward(plan.tasks.size());
@@ -189,9 +194,8 @@ TEST(AdaptiveCompletion, InvalidParametersAreRejected) {
     OptionMap params = OptionMap::Parse({bad});
     EXPECT_THROW(CreateGatherMethod("adaptive-completion", params), OptionError) << bad;
   }
-  OptionMap ok = OptionMap::Parse(
-      {"rho=0.2", "columns=4", "sigma=0.01", "beta=0.02", "omega_per_basis=1.5",
-       "rank_tolerance=0.01"});
+  OptionMap ok = OptionMap::Parse({"rho=0.2", "columns=4", "sigma=0.01", "beta=0.02",
+                                   "omega_per_basis=1.5", "rank_tolerance=0.01"});
   auto method = CreateGatherMethod("adaptive-completion", ok);
   EXPECT_EQ(method->name(), "adaptive-completion");
   EXPECT_TRUE(method->needs_light_tree());

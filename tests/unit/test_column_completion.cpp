@@ -267,13 +267,13 @@ TEST(ColumnCompletion, CoefficientsFromASmallerBasisStillReconstruct) {
 TEST(ColumnCompletion, EnergyLossTest) {
   ColumnProjection p;
   p.observed_l1 = 2.0;
-  p.residual_l1 = 1.0;  // half the energy lost
-  EXPECT_FALSE(FailsEnergyTest(p, 1.0, 100.0, 0.005));   // 0.5 ≤ 0.5
-  EXPECT_TRUE(FailsEnergyTest(p, 1.01, 100.0, 0.005));   // 0.505 > 0.5
+  p.residual_l1 = 1.0;                                  // half the energy lost
+  EXPECT_FALSE(FailsEnergyTest(p, 1.0, 100.0, 0.005));  // 0.5 ≤ 0.5
+  EXPECT_TRUE(FailsEnergyTest(p, 1.01, 100.0, 0.005));  // 0.505 > 0.5
   EXPECT_FALSE(FailsEnergyTest(p, 0.5, 100.0, 0.005));
-  EXPECT_TRUE(FailsEnergyTest(p, 1e-12, 100.0, 0.0));    // σ = 0: any loss fails
+  EXPECT_TRUE(FailsEnergyTest(p, 1e-12, 100.0, 0.0));  // σ = 0: any loss fails
   p.residual_l1 = 0;
-  EXPECT_FALSE(FailsEnergyTest(p, 1e12, 1.0, 0.0));     // nothing lost never fails
+  EXPECT_FALSE(FailsEnergyTest(p, 1e12, 1.0, 0.0));  // nothing lost never fails
 }
 
 }  // namespace
