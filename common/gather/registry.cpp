@@ -15,6 +15,7 @@ const std::vector<std::pair<std::string, Factory>>& Registry() {
       {"mrcs", CreateMrcsGather},
       {"lightcuts", CreateLightcutsGather},
       {"sparse-completion", CreateSparseCompletionGather},
+      {"lightslice", CreateLightSliceGather},
   };
   return registry;
 }
