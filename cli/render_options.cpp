@@ -7,7 +7,10 @@
 namespace lightfarm::cli {
 
 void AddRenderOptions(CLI::App* cmd, RenderOptionArgs& a) {
-  cmd->add_option("--method", a.method, "Gather method (brute, ...)");
+  std::string methods;
+  for (const std::string& m : GatherMethodNames()) methods += ", " + m;
+  cmd->add_option("--method", a.method,
+                  "Gather method: auto (default: picks by scene and target_error)" + methods);
   cmd->add_option("--resolution", a.resolution, "WxH (default: the scene's Film)");
   cmd->add_option("--filter", a.filter, "Override the scene's pixel filter")
       ->check(CLI::IsMember({"box", "triangle", "gaussian", "mitchell", "sinc"}));

@@ -10,7 +10,7 @@
 namespace lightfarm::cli {
 
 struct RenderOptionArgs {
-  std::string method = "brute";
+  std::string method = "auto";
   std::string resolution;
   std::string filter;
   int spp = 1;

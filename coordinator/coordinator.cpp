@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "common/farm/proto_convert.h"
+#include "common/gather/auto_method.h"
 #include "common/image/image_io.h"
 #include "common/util/error.h"
 
@@ -148,7 +149,7 @@ std::string Coordinator::Submit(const v1::SubmitJobRequest& req) {
     throw FarmError(Code::kResourceExhausted, "spp " + std::to_string(s.spp()) + " exceeds the limit of " +
                                                   std::to_string(options_.max_spp));
   try {
-    CreateGatherMethod(FromProto(s).method, OptionMap::Parse(FromProto(s).params));
+    CheckGatherMethodOptions(FromProto(s).method, OptionMap::Parse(FromProto(s).params));
   } catch (const OptionError& e) {
     throw FarmError(Code::kInvalidArgument, e.what());
   }

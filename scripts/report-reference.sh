@@ -73,7 +73,7 @@ PY
   echo "| scene | render options | size | lights | rel_l2 | rel_l1 | clamp loss | time |"
   echo "|---|---|---|---|---|---|---|---|"
   for c in 0 0.003 0.01 0.03 0.1; do
-    row cornell-box clamp$c --resolution 48x48 --spp 16 --filter box --lights 5000 --param clamp=$c
+    row cornell-box clamp$c --method brute --resolution 48x48 --spp 16 --filter box --lights 5000 --param clamp=$c
   done
 } > "$out.tmp"
 mv "$out.tmp" "$out"

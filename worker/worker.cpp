@@ -12,6 +12,8 @@
 
 #include "common/farm/proto_convert.h"
 #include "common/farm/serialize.h"
+#include "common/gather/auto_method.h"
+#include "common/scene/effects.h"
 #include "common/scene/scene_description.h"
 #include "coordinator/content_hash.h"
 #include "coordinator/render_client.h"
@@ -259,7 +261,11 @@ std::shared_ptr<Worker::JobRuntime> Worker::Runtime(const v1::JobContext& job) {
   rt->scene = Scene::Build(desc, build);
   rt->lights = DeserializeLightSet(ReadBytes(FetchBlob(job.lights_sha256())));
   rt->receivers = DeserializeReceiverSet(ReadBytes(FetchBlob(job.receivers_sha256())));
-  rt->method = CreateGatherMethod(settings.method, OptionMap::Parse(settings.params));
+  // `auto` resolves as the coordinator's plan did: from the scene's effects and requested lights.
+  const OptionMap params = OptionMap::Parse(settings.params);
+  rt->method = CreateGatherMethod(
+      ResolveGatherMethodName(settings.method, ComputeEffects(*rt->scene), settings.lights, params),
+      params);
   if (rt->method->needs_light_tree())
     rt->tree = std::make_unique<LightTree>(LightTree::Build(rt->lights, settings.seed));
   MatrixOptions mopt;

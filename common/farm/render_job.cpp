@@ -4,6 +4,7 @@
 
 #include <chrono>
 
+#include "common/gather/auto_method.h"
 #include "common/image/film.h"
 #include "common/image/filter.h"
 #include "common/lights/light_generation.h"
@@ -56,6 +57,7 @@ Plan& Plan::operator=(Plan&& other) noexcept {
   tree = std::move(other.tree);
   method = std::move(other.method);
   tasks = std::move(other.tasks);
+  method_rule = std::move(other.method_rule);
   matrix_options = other.matrix_options;
   clamp = other.clamp;
   matrix.reset();
@@ -74,8 +76,15 @@ Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, Ph
   SlicingOptions slicing;
   slicing.rows_per_slice = size_t(params.GetInt("rows_per_slice", 800, 1, 1 << 24));
   slicing.seed = settings.seed;
-  plan.method = CreateGatherMethod(settings.method, params);
-  params.RejectUnused();
+  // `auto` resolves once the scene's effects are known (below); until then only its own
+  // parameter can be checked, and a typo in the others is reported after the scene is built.
+  const bool auto_method = settings.method == kAutoMethod;
+  if (auto_method) {
+    CheckGatherMethodOptions(settings.method, params);
+  } else {
+    plan.method = CreateGatherMethod(settings.method, params);
+    params.RejectUnused();
+  }
   if (settings.spp < 1) throw OptionError("--spp must be >= 1");
   if (settings.lights < 1) throw OptionError("--lights must be >= 1");
 
@@ -88,6 +97,13 @@ Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, Ph
   plan.scene = Scene::Build(desc, build);
   const Scene& scene = *plan.scene;
   plan.effects = ComputeEffects(scene);
+  if (auto_method) {
+    const AutoMethodChoice choice = ResolveAutoMethod(plan.effects, settings.lights, params);
+    spdlog::info("method auto resolved to {} (rule: {})", choice.method, choice.rule);
+    plan.method = CreateGatherMethod(choice.method, params);
+    plan.method_rule = choice.rule;
+    params.RejectUnused();
+  }
   timer.End("build");
 
   std::unique_ptr<Filter> filter = MakeFilter(scene.hints());
@@ -185,6 +201,8 @@ nlohmann::json MakeStats(const Plan& plan, const RenderSettings& settings,
   const MatrixCounters& counters = outcome.counters;
   nlohmann::json s;
   s["method"] = plan.method->name();
+  s["method_requested"] = settings.method;
+  if (!plan.method_rule.empty()) s["method_rule"] = plan.method_rule;
   s["seed"] = settings.seed;
   s["resolution"] = {plan.receivers.width, plan.receivers.height};
   s["spp"] = plan.receivers.spp;

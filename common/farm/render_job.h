@@ -21,7 +21,7 @@
 namespace lightfarm {
 
 struct RenderSettings {
-  std::string method = "brute";
+  std::string method = "brute";  // the library default; the CLI defaults to "auto" (auto_method.h)
   int width = 0, height = 0;  // 0: the scene's Film resolution
   std::string filter;  // overrides the scene's PixelFilter when set
   int spp = 1;
@@ -47,6 +47,7 @@ struct Plan {
   std::unique_ptr<LightTree> tree;  // built when the method needs it
   std::unique_ptr<LightingMatrix> matrix;
   std::unique_ptr<GatherMethod> method;
+  std::string method_rule;  // when the method was `auto`: the rule that resolved it
   std::vector<SubMatrixTask> tasks;
   MatrixOptions matrix_options;
   double clamp = 0;

@@ -12,5 +12,6 @@ std::unique_ptr<GatherMethod> CreateMrcsGather(const OptionMap& params);
 std::unique_ptr<GatherMethod> CreateLightcutsGather(const OptionMap& params);
 std::unique_ptr<GatherMethod> CreateSparseCompletionGather(const OptionMap& params);
 std::unique_ptr<GatherMethod> CreateAdaptiveCompletionGather(const OptionMap& params);
+std::unique_ptr<GatherMethod> CreateLightSliceGather(const OptionMap& params);
 
 }  // namespace lightfarm

@@ -775,6 +775,14 @@ std::vector<std::vector<uint32_t>> MrcsClusterPoints(const Eigen::MatrixXf& poin
   return SplitUntil(points, w, std::move(clusters), count, seed);
 }
 
+std::vector<std::vector<uint32_t>> MrcsSplitClusters(const Eigen::MatrixXf& points,
+                                                     std::vector<std::vector<uint32_t>> clusters,
+                                                     size_t count, uint64_t seed) {
+  std::erase_if(clusters, [](const std::vector<uint32_t>& c) { return c.empty(); });
+  if (clusters.empty()) return clusters;
+  return SplitUntil(points, ColumnNorms(points), std::move(clusters), count, seed);
+}
+
 Eigen::MatrixXf MrcsProjectionMatrix(int dims, int rows, uint64_t seed) {
   Eigen::MatrixXf P(dims, rows);
   Rng rng(HashSeed({seed, Stream(RngStream::kClustering), 3}));

@@ -44,6 +44,15 @@ double MrcsObjective(const Eigen::MatrixXf& points,
 std::vector<std::vector<uint32_t>> MrcsClusterPoints(const Eigen::MatrixXf& points, size_t count,
                                                      uint64_t seed);
 
+// Top-down splitting alone (Sec. 3.5): starting from `clusters` (indices into the columns of
+// `points`), splits the most costly cluster along a random line at the best cut until there are
+// `count` clusters or none has two members. Only ever splits, so the objective never increases;
+// the splits for a larger count extend those for a smaller one (same seed). Used by LightSlice's
+// per-slice refinement of the global clusters. Deterministic in `seed`.
+std::vector<std::vector<uint32_t>> MrcsSplitClusters(const Eigen::MatrixXf& points,
+                                                     std::vector<std::vector<uint32_t>> clusters,
+                                                     size_t count, uint64_t seed);
+
 // Gaussian random projection (dims × rows, entries N(0, 1/dims)) for Sec. 4's speed-up.
 Eigen::MatrixXf MrcsProjectionMatrix(int dims, int rows, uint64_t seed);
 

@@ -16,6 +16,7 @@ const std::vector<std::pair<std::string, Factory>>& Registry() {
       {"lightcuts", CreateLightcutsGather},
       {"sparse-completion", CreateSparseCompletionGather},
       {"adaptive-completion", CreateAdaptiveCompletionGather},
+      {"lightslice", CreateLightSliceGather},
   };
   return registry;
 }

@@ -20,8 +20,9 @@ using namespace lightfarm::testing;
 
 // 32x32 Cornell box in ~16 slices of ~64 receivers against 20000 lights: a few seconds on two
 // single-threaded workers, long enough to kill things mid-job.
-const std::vector<std::string> kJobArgs = {"--resolution", "32x32", "--lights", "20000", "--seed", "7",
-                                           "--param", "rows_per_slice=64"};
+// --method brute: the CLI's default is auto, JobSettings() keeps RenderSettings' brute.
+const std::vector<std::string> kJobArgs = {"--method", "brute", "--resolution", "32x32", "--lights", "20000",
+                                           "--seed", "7", "--param", "rows_per_slice=64"};
 
 RenderSettings JobSettings() {
   RenderSettings s;

@@ -1,0 +1,119 @@
+// `--method auto`: the rule table resolves surface scenes by light count and accuracy target,
+// media scenes to adaptive-completion only when the registry has it, rejects a target that is
+// not a number in (0, 1], and a render names the resolved method in its stats.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <algorithm>
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "common/farm/render_job.h"
+#include "common/gather/auto_method.h"
+#include "common/gather/gather.h"
+#include "common/util/error.h"
+#include "tests/common/test_util.h"
+
+namespace lightfarm {
+namespace {
+
+// What ComputeEffects gives cornell-box: an area light, direct + indirect, diffuse only.
+Effects SurfaceEffects() {
+  Effects e;
+  e.area_lights = true;
+  e.diffuse = true;
+  e.max_depth = 5;
+  return e;
+}
+
+std::string Resolve(const Effects& e, size_t lights, std::vector<std::string> params = {}) {
+  return ResolveAutoMethod(e, lights, OptionMap::Parse(params)).method;
+}
+
+bool Registered(const std::string& name) {
+  const std::vector<std::string> names = GatherMethodNames();
+  return std::find(names.begin(), names.end(), name) != names.end();
+}
+
+TEST(AutoMethod, SurfaceScenesResolveByLightCountAndTarget) {
+  const Effects e = SurfaceEffects();
+  // Few lights: brute force is cheap and exact.
+  EXPECT_EQ(Resolve(e, 1), "brute");
+  EXPECT_EQ(Resolve(e, 300), "brute");
+  // The default target (2%): the cheapest method measured within half of it.
+  EXPECT_EQ(Resolve(e, 20000), "lightcuts");
+  EXPECT_EQ(Resolve(e, 1000000), "lightcuts");
+  // A loose target buys the cheapest method; one tighter than any measured error, brute force.
+  EXPECT_EQ(Resolve(e, 20000, {"target_error=0.1"}), "sparse-completion");
+  EXPECT_EQ(Resolve(e, 20000, {"target_error=0.0001"}), "brute");
+  // Every answer is a method the registry can create.
+  for (const char* target : {"target_error=0.0001", "target_error=0.01", "target_error=1"})
+    EXPECT_NO_THROW(CreateGatherMethod(Resolve(e, 20000, {target}), OptionMap())) << target;
+}
+
+TEST(AutoMethod, MediaResolveToAdaptiveCompletionOnlyWhenRegistered) {
+  Effects e = SurfaceEffects();
+  e.media = true;
+  const std::string expected = Registered("adaptive-completion") ? "adaptive-completion" : "brute";
+  EXPECT_EQ(Resolve(e, 20000), expected);
+  EXPECT_EQ(Resolve(e, 20000, {"target_error=0.1"}), expected);
+}
+
+TEST(AutoMethod, InvalidTargetIsAnOptionError) {
+  for (const char* bad : {"target_error=fast", "target_error=0", "target_error=-0.1",
+                          "target_error=2", "target_error="}) {
+    EXPECT_THROW(Resolve(SurfaceEffects(), 20000, {bad}), OptionError) << bad;
+    EXPECT_THROW(CheckGatherMethodOptions("auto", OptionMap::Parse({bad})), OptionError) << bad;
+  }
+  EXPECT_NO_THROW(CheckGatherMethodOptions("auto", OptionMap::Parse({"target_error=0.05"})));
+  EXPECT_THROW(CheckGatherMethodOptions("no-such-method", OptionMap()), OptionError);
+  // target_error is auto's parameter: a concrete method leaves it unused, which is an error.
+  RenderSettings s;
+  s.method = "brute";
+  s.params = {"target_error=0.05"};
+  EXPECT_THROW(BuildPlan(testing::SharedScene("cornell-box"), s, nullptr), OptionError);
+}
+
+TEST(AutoMethod, RenderStatsNameTheResolvedMethod) {
+  const std::string scene = testing::SharedScene("cornell-box");
+  RenderSettings s;
+  s.method = "auto";
+  s.width = s.height = 16;
+  s.lights = 2000;
+  s.seed = 1;
+  {
+    const Plan plan = BuildPlan(scene, s, nullptr);
+    EXPECT_EQ(plan.method->name(), ResolveAutoMethod(plan.effects, s.lights, OptionMap()).method);
+  }
+  RenderOutput out = RenderScene(scene, s);
+  EXPECT_EQ(out.stats["method"], "lightcuts");
+  EXPECT_EQ(out.stats["method_requested"], "auto");
+  EXPECT_EQ(out.stats["method_rule"], "accuracy (target_error 0.02)");
+  EXPECT_GT(out.image.MeanLuminance(), 0);
+  // A concrete method is its own request.
+  s.method = "brute";
+  s.lights = 50;
+  RenderOutput brute = RenderScene(scene, s);
+  EXPECT_EQ(brute.stats["method"], "brute");
+  EXPECT_EQ(brute.stats["method_requested"], "brute");
+  EXPECT_FALSE(brute.stats.contains("method_rule"));
+}
+
+TEST(AutoMethod, TheCliDefaultsToAuto) {
+  testing::TempDir dir;
+  const std::string stats = dir.Path("img.json");
+  const std::string cmd = std::string(LIGHTFARM_CLI_PATH) + " render " +
+                          testing::SharedScene("cornell-box") +
+                          " --resolution 8x8 --lights 100 --quiet --out " + dir.Path("img.exr") +
+                          " --stats " + stats + " >/dev/null 2>&1";
+  const int status = std::system(cmd.c_str());
+  ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0);
+  std::ifstream f(stats);
+  const nlohmann::json j = nlohmann::json::parse(f);
+  EXPECT_EQ(j["method_requested"], "auto");
+  EXPECT_EQ(j["method"], "brute");  // 100 lights: the few-lights row
+  EXPECT_EQ(j["method_rule"], "few lights");
+}
+
+}  // namespace
+}  // namespace lightfarm
