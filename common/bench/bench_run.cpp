@@ -219,6 +219,7 @@ std::vector<BenchRow> RunBench(const BenchOptions& o, const BenchProgress& progr
     brow.time_total_s = ref.brute_seconds;
     brow.shadow_rays = ref.brute_shadow_rays;
     brow.shadow_rays_per_pixel = ref.brute_shadow_rays / (double(w) * h);
+    brow.elements = ref.brute_elements;
     brow.fraction_evaluated = 1;
     brow.peak_rss_mb = ref.from_cache ? 0 : PeakMemoryMiB();
     brow.reference = ref.pixels.empty() ? "full" : "pixels:" + std::to_string(ref.pixels.size());

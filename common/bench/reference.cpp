@@ -112,6 +112,7 @@ void SaveReference(const ReferenceRequest& r, const BenchReference& ref) {
   meta["pixels"] = ref.pixels;
   meta["brute_seconds"] = ref.brute_seconds;
   meta["brute_shadow_rays"] = ref.brute_shadow_rays;
+  meta["brute_elements"] = ref.brute_elements;
   meta["extrapolated"] = ref.extrapolated;
   const std::string json = CachePath(r, ref.key, ".json");
   std::ofstream(json + ".tmp") << meta.dump(1) << "\n";
@@ -136,6 +137,7 @@ BenchReference ComputeReference(const ReferenceRequest& r) {
     ref.image = AssembleImage(plan, outcome.row_sums, nullptr);
     ref.brute_seconds = std::chrono::duration<double>(Clock::now() - t0).count();
     ref.brute_shadow_rays = double(outcome.counters.shadow_rays);
+    ref.brute_elements = double(outcome.counters.elements);
     g_computations++;
     return ref;
   }
@@ -170,6 +172,7 @@ BenchReference ComputeReference(const ReferenceRequest& r) {
   for (const auto& [name, secs] : times.phases) plan_seconds += secs;
   ref.brute_seconds = plan_seconds + gather_seconds * scale;
   ref.brute_shadow_rays = double(counters.shadow_rays) * scale;
+  ref.brute_elements = double(plan.matrix->rows()) * double(plan.matrix->cols());
   ref.extrapolated = true;
   g_computations++;
   return ref;
@@ -222,6 +225,7 @@ bool LoadCachedReference(const ReferenceRequest& r, BenchReference* out) {
   ref.pixels = meta["pixels"].get<std::vector<uint32_t>>();
   ref.brute_seconds = meta["brute_seconds"].get<double>();
   ref.brute_shadow_rays = meta["brute_shadow_rays"].get<double>();
+  ref.brute_elements = meta.value("brute_elements", 0.0);
   ref.extrapolated = meta["extrapolated"].get<bool>();
   ref.lights = meta["lights"].get<size_t>();
   ref.from_cache = true;

@@ -32,6 +32,7 @@ struct BenchReference {
   std::vector<uint32_t> pixels;  // the subset's pixel indices (ascending); empty: full image
   double brute_seconds = 0;      // time of full brute force (extrapolated for a subset)
   double brute_shadow_rays = 0;  // shadow rays of full brute force (extrapolated for a subset)
+  double brute_elements = 0;     // matrix elements of full brute force (rows × lights)
   bool extrapolated = false;     // brute_* scaled from the subset's rows to all rows
   size_t lights = 0;             // actual light count
   bool from_cache = false;
