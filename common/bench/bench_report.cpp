@@ -169,7 +169,8 @@ void WritePlots(const std::vector<SettingSummary>& sums, const std::string& dir,
 }
 
 // Heatmap of a pixel-subset comparison: only the subset's pixels are coloured, relative to the
-// subset's mean luminance (as ErrorHeatmap is to the full image's).
+// subset's mean luminance (as ErrorHeatmap is to the full image's). Masked, the reference's mean
+// over all pixels is coverage × the subset's mean, so the scale's top is divided by coverage.
 Image SubsetHeatmap(const Image& ref, const Image& img, const std::vector<uint32_t>& pixels) {
   Image r(ref.width, ref.height), m(ref.width, ref.height);
   for (uint32_t p : pixels) {
@@ -177,7 +178,7 @@ Image SubsetHeatmap(const Image& ref, const Image& img, const std::vector<uint32
     m.pixels[p] = img.pixels[p];
   }
   const float coverage = float(pixels.size()) / float(ref.PixelCount());
-  return ErrorHeatmap(r, m, kDefaultHeatmapMaxError * coverage);
+  return ErrorHeatmap(r, m, kDefaultHeatmapMaxError / coverage);
 }
 
 // Pastes PNGs into a grid (OpenImageIO): row 0 the images, row 1 their heatmaps.
