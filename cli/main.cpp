@@ -23,6 +23,7 @@ int main(int argc, char** argv) {
   app.set_version_flag("--version", std::string(LIGHTFARM_VERSION));
   lightfarm::cli::AddRenderCommand(app);
   lightfarm::cli::AddCompareCommand(app);
+  lightfarm::cli::AddBenchCommand(app);
   lightfarm::cli::AddSubmitCommand(app);
   lightfarm::cli::AddStatusCommand(app);
   lightfarm::cli::AddWatchCommand(app);

@@ -11,6 +11,7 @@
 #include "cli/commands.h"
 #include "cli/progress.h"
 #include "cli/render_options.h"
+#include "cli/target_error.h"
 #include "common/image/image_io.h"
 #include "common/util/error.h"
 #include "coordinator/embedded_farm.h"
@@ -22,6 +23,7 @@ namespace {
 struct RenderArgs {
   std::string scene;
   RenderOptionArgs render;
+  TargetErrorArgs target;
   std::string out = "out/render.exr";
   std::string stats;
   int threads = 0;
@@ -43,6 +45,7 @@ void WriteTextAtomically(const std::string& path, const std::string& text) {
 
 void RunRender(const RenderArgs& a) {
   RenderSettings s = ToRenderSettings(a.render);
+  const TargetErrorPlan target = ApplyTargetError(a.target, a.scene, &s);
   if (a.out.size() < 5 || a.out.substr(a.out.size() - 4) != ".exr")
     throw OptionError("--out must name an .exr file, got \"" + a.out + "\"");
   std::filesystem::path out_path(a.out);
@@ -68,6 +71,7 @@ void RunRender(const RenderArgs& a) {
                  out.stats["lights"]["total"].get<size_t>(),
                  out.stats["time"]["total_s"].get<double>(), a.out.c_str());
   }
+  ReportTargetError(target, a.target, a.scene, s, out.image, out.stats["time"]["total_s"].get<double>());
 }
 
 }  // namespace
@@ -77,6 +81,7 @@ void AddRenderCommand(CLI::App& app) {
   CLI::App* cmd = app.add_subcommand("render", "Render a pbrt-v4 scene on an embedded farm in this process");
   cmd->add_option("scene", args->scene, "pbrt-v4 scene file")->required()->check(CLI::ExistingFile);
   AddRenderOptions(cmd, args->render);
+  AddTargetErrorOptions(cmd, args->target);
   cmd->add_option("--out", args->out, "Output EXR (a tone-mapped PNG is written beside it)");
   cmd->add_option("--stats", args->stats, "Write stats JSON here");
   cmd->add_option("--threads", args->threads, "Worker threads (0 = all cores)")

@@ -2,11 +2,14 @@
 // uploads the scene files the coordinator lacks, submits a job, prints its id; with --wait,
 // follows it (progress bar, ETA) and fetches the result.
 #include <iostream>
+#include <nlohmann/json.hpp>
 
 #include "cli/commands.h"
 #include "cli/farm_options.h"
 #include "cli/progress.h"
 #include "cli/render_options.h"
+#include "cli/target_error.h"
+#include "common/image/image_io.h"
 #include "common/farm/proto_convert.h"
 
 namespace lightfarm::cli {
@@ -16,6 +19,7 @@ namespace {
 struct SubmitArgs {
   std::string scene;
   RenderOptionArgs render;
+  TargetErrorArgs target;
   ServerArgs server;
   int priority = 0;
   std::string name;
@@ -25,7 +29,8 @@ struct SubmitArgs {
 };
 
 void RunSubmit(const SubmitArgs& a) {
-  const RenderSettings settings = ToRenderSettings(a.render);
+  RenderSettings settings = ToRenderSettings(a.render);
+  const TargetErrorPlan target = ApplyTargetError(a.target, a.scene, &settings);
   if (!a.out.empty() && !a.wait) throw OptionError("--out needs --wait (or use `lightfarm fetch` later)");
   auto client = ConnectToCoordinator(a.server);
   // A scene that does not parse here is still submitted: the coordinator fails the job and
@@ -44,6 +49,12 @@ void RunSubmit(const SubmitArgs& a) {
     std::string exr, stats;
     client->Fetch(job, &exr, &stats);
     WriteFetchedResult(a.out, exr, stats, a.stats);
+    if (target.active) {
+      const auto job_stats = nlohmann::json::parse(stats, nullptr, false);
+      const double seconds = job_stats.is_object() && job_stats.contains("time")
+                                 ? job_stats["time"].value("total_s", 0.0) : 0.0;
+      ReportTargetError(target, a.target, a.scene, settings, ReadImage(a.out), seconds);
+    }
   }
   if (!a.quiet) std::cerr << DescribeJob(st) << "\n";
 }
@@ -55,6 +66,7 @@ void AddSubmitCommand(CLI::App& app) {
   CLI::App* cmd = app.add_subcommand("submit", "Submit a scene to a render farm");
   cmd->add_option("scene", args->scene, "pbrt-v4 scene file")->required()->check(CLI::ExistingFile);
   AddRenderOptions(cmd, args->render);
+  AddTargetErrorOptions(cmd, args->target);
   AddServerOptions(cmd, args->server);
   cmd->add_option("--priority", args->priority, "Higher runs first");
   cmd->add_option("--name", args->name, "Job label (default: the scene path)");

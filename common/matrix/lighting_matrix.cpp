@@ -41,6 +41,13 @@ LightingMatrix::LightingMatrix(const Scene& scene, const ReceiverSet& receivers,
     // light side (VPL depth) must not exceed it.
     r.light_depth_budget = uint8_t(std::clamp(max_depth - int(sp.depth), 0, 255));
   }
+  light_frames_.resize(lights.size());
+  for (size_t j = 0; j < lights.size(); ++j) {
+    const VirtualLight& L = lights.lights[j];
+    if (L.kind != VirtualLightKind::kSurfaceVPL) continue;
+    light_frames_[j].frame = Frame(L.n);
+    light_frames_[j].wi_local = light_frames_[j].frame.ToLocal(L.wi);
+  }
 }
 
 template <typename EntryFn, typename SinkFn>
@@ -87,10 +94,10 @@ void LightingMatrix::EvaluateBatched(size_t n, EntryFn entry, SinkFn sink,
         }
         case VirtualLightKind::kSurfaceVPL: {
           // Re-emission through the VPL's BSDF: light arrived from wi, leaves towards -w.
-          Frame lf(L.n);
-          Vec3 out_local = lf.ToLocal(-w);
+          const SurfaceLightFrame& lf = light_frames_[lj];
+          Vec3 out_local = lf.frame.ToLocal(-w);
           if (Dot(L.ng, -w) * out_local.z <= 0) continue;
-          RGB fl = EvalBSDF(materials[L.material], lf.ToLocal(L.wi), out_local,
+          RGB fl = EvalBSDF(materials[L.material], lf.wi_local, out_local,
                             TransportMode::kImportance);
           intensity = L.power * fl * std::abs(out_local.z);
           break;
@@ -152,6 +159,7 @@ void LightingMatrix::EvaluateBatched(size_t n, EntryFn entry, SinkFn sink,
     }
     counters->elements += count;
     if (nrays == 0) continue;
+    if (recorded_rays_) recorded_rays_->insert(recorded_rays_->end(), rays.begin(), rays.begin() + nrays);
     scene_.Occluded(rays.data(), nrays);
     counters->shadow_rays += nrays;
     for (size_t r = 0; r < nrays; ++r) {

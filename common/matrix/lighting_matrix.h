@@ -60,6 +60,10 @@ class LightingMatrix {
   void Column(uint32_t col, std::span<const uint32_t> rows, std::span<RGB> out,
               MatrixCounters* counters) const;
 
+  // Benchmarks only (bench/): appends every shadow ray handed to Embree to `rays` (not
+  // thread-safe: record from one thread). nullptr stops recording.
+  void RecordShadowRays(std::vector<RTCRay>* rays) const { recorded_rays_ = rays; }
+
  private:
   // Receiver data in the form element evaluation wants it.
   struct RowData {
@@ -78,7 +82,15 @@ class LightingMatrix {
   const ReceiverSet& receivers_;
   const LightSet& lights_;
   std::vector<RowData> rows_;
+  // Surface VPLs' shading frame and incident direction in it, per light (unused for other
+  // kinds): computed once here instead of for every element of the light's column.
+  struct SurfaceLightFrame {
+    Frame frame;
+    Vec3 wi_local;
+  };
+  std::vector<SurfaceLightFrame> light_frames_;
   float clamp_distance_ = 0, clamp_distance2_ = 0;
+  mutable std::vector<RTCRay>* recorded_rays_ = nullptr;
 };
 
 }  // namespace lightfarm

@@ -1,0 +1,150 @@
+// Micro-benchmarks: how close the gathers come to Embree's raw occlusion rate. The shadow rays a
+// brute-force row sum and a column evaluation issue on cornell-box are recorded once, then
+// replayed through rtcOccluded1M alone; the gather's own rate (shadow rays and elements per
+// second, shading included) over the replay's rate is the efficiency (target >= 0.7).
+// Single-threaded on purpose: the ratio is per core. Run: build/lightfarm_bench
+#include <benchmark/benchmark.h>
+#include <tbb/global_control.h>
+
+#include <cstdio>
+#include <cstdlib>
+#include <map>
+#include <numeric>
+
+#include "common/farm/render_job.h"
+#include "common/util/rng.h"
+
+namespace lightfarm {
+namespace {
+
+constexpr size_t kBatch = 256;  // as LightingMatrix batches
+
+struct Fixture {
+  Plan plan;
+  std::vector<uint32_t> brute_rows;      // rows a brute-force benchmark iteration sums
+  std::vector<uint32_t> columns;         // lights a column benchmark iteration evaluates
+  std::vector<uint32_t> column_rows;     // ... against these rows (one slice-sized set)
+  std::vector<RTCRay> brute_rays, column_rays;
+};
+
+std::string SharedScene() {
+  const char* env = std::getenv("LIGHTFARM_SHARED");
+  return (env ? std::string(env) : std::string(LIGHTFARM_SOURCE_DIR) + "/../shared") +
+         "/scenes/cornell-box/scene.pbrt";
+}
+
+Fixture& Get() {
+  static Fixture* f = [] {
+    auto* fx = new Fixture;
+    RenderSettings s;
+    s.width = s.height = 64;
+    s.lights = 20000;
+    s.seed = 1;
+    fx->plan = BuildPlan(SharedScene(), s, nullptr);
+    const LightingMatrix& m = *fx->plan.matrix;
+    Rng rng(HashSeed({1, 0xBE7C6}));
+    for (int i = 0; i < 32; ++i) fx->brute_rows.push_back(rng.UniformInt(uint32_t(m.rows())));
+    for (int i = 0; i < 64; ++i) fx->columns.push_back(rng.UniformInt(uint32_t(m.cols())));
+    fx->column_rows = fx->plan.tasks.front().rows;
+    // Record the exact rays both gathers hand to Embree.
+    MatrixCounters c;
+    m.RecordShadowRays(&fx->brute_rays);
+    for (uint32_t r : fx->brute_rows) m.RowSum(r, &c);
+    m.RecordShadowRays(&fx->column_rays);
+    std::vector<RGB> out(fx->column_rows.size());
+    for (uint32_t col : fx->columns) m.Column(col, fx->column_rows, out, &c);
+    m.RecordShadowRays(nullptr);
+    return fx;
+  }();
+  return *f;
+}
+
+void SetRates(benchmark::State& state, double rays, double elements) {
+  state.counters["rays/s"] = benchmark::Counter(rays, benchmark::Counter::kIsRate);
+  state.counters["elements/s"] = benchmark::Counter(elements, benchmark::Counter::kIsRate);
+}
+
+void BM_GatherBruteRowSum(benchmark::State& state) {
+  Fixture& f = Get();
+  MatrixCounters c;
+  for (auto _ : state)
+    for (uint32_t r : f.brute_rows) benchmark::DoNotOptimize(f.plan.matrix->RowSum(r, &c));
+  SetRates(state, double(c.shadow_rays), double(c.elements));
+}
+
+void BM_GatherColumn(benchmark::State& state) {
+  Fixture& f = Get();
+  MatrixCounters c;
+  std::vector<RGB> out(f.column_rows.size());
+  for (auto _ : state) {
+    for (uint32_t col : f.columns) f.plan.matrix->Column(col, f.column_rows, out, &c);
+    benchmark::DoNotOptimize(out.data());
+  }
+  SetRates(state, double(c.shadow_rays), double(c.elements));
+}
+
+// Replays recorded rays in the gather's batch size; tfar is restored from the pristine copy
+// (Embree overwrites it) in the same pass, as the gather fills its batch.
+void ReplayOcclusion(benchmark::State& state, const std::vector<RTCRay>& recorded) {
+  Fixture& f = Get();
+  std::vector<RTCRay> batch(kBatch);
+  double rays = 0;
+  for (auto _ : state) {
+    for (size_t begin = 0; begin < recorded.size(); begin += kBatch) {
+      const size_t n = std::min(kBatch, recorded.size() - begin);
+      std::copy(recorded.begin() + long(begin), recorded.begin() + long(begin + n), batch.begin());
+      f.plan.scene->Occluded(batch.data(), n);
+    }
+    rays += double(recorded.size());
+    benchmark::DoNotOptimize(batch.data());
+  }
+  SetRates(state, rays, 0);
+}
+
+void BM_RawOcclusionBruteRays(benchmark::State& state) { ReplayOcclusion(state, Get().brute_rays); }
+void BM_RawOcclusionColumnRays(benchmark::State& state) { ReplayOcclusion(state, Get().column_rays); }
+
+BENCHMARK(BM_GatherBruteRowSum)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_RawOcclusionBruteRays)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_GatherColumn)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_RawOcclusionColumnRays)->Unit(benchmark::kMillisecond);
+
+// Prints the usual table, then the efficiency ratio per gather.
+class RatioReporter : public benchmark::ConsoleReporter {
+ public:
+  void ReportRuns(const std::vector<Run>& runs) override {
+    ConsoleReporter::ReportRuns(runs);
+    for (const Run& r : runs) {
+      auto it = r.counters.find("rays/s");
+      if (it != r.counters.end()) rates[r.benchmark_name()] = it->second.value;
+    }
+  }
+  std::map<std::string, double> rates;
+};
+
+}  // namespace
+}  // namespace lightfarm
+
+int main(int argc, char** argv) {
+  using namespace lightfarm;
+  tbb::global_control one(tbb::global_control::max_allowed_parallelism, 1);
+  benchmark::Initialize(&argc, argv);
+  if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
+  RatioReporter reporter;
+  benchmark::RunSpecifiedBenchmarks(&reporter);
+  std::printf("\ngather efficiency = gather shadow rays/s over raw rtcOccluded1M rays/s on the same rays "
+              "(target >= 0.7)\n");
+  const Fixture& f = Get();
+  std::printf("recorded rays: brute %zu (%zu rows x %zu lights), column %zu (%zu columns x %zu rows)\n",
+              f.brute_rays.size(), f.brute_rows.size(), f.plan.matrix->cols(), f.column_rays.size(),
+              f.columns.size(), f.column_rows.size());
+  for (auto [gather, raw] : {std::pair{"BM_GatherBruteRowSum", "BM_RawOcclusionBruteRays"},
+                             std::pair{"BM_GatherColumn", "BM_RawOcclusionColumnRays"}}) {
+    auto g = reporter.rates.find(gather), r = reporter.rates.find(raw);
+    if (g == reporter.rates.end() || r == reporter.rates.end()) continue;
+    std::printf("%-22s %10.3g rays/s  raw %10.3g rays/s  ratio %.2f\n", gather, g->second, r->second,
+                g->second / r->second);
+  }
+  benchmark::Shutdown();
+  return 0;
+}

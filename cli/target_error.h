@@ -1,0 +1,44 @@
+// `--target-error E` (render, submit): parameters from the scene's bench cost model
+// (common/bench/cost_model.h), a prediction printed before the render, and the estimated and
+// (when a cached brute-force reference exists) measured error after it.
+#pragma once
+
+#include <CLI/CLI.hpp>
+#include <string>
+#include <vector>
+
+#include "common/bench/cost_model.h"
+#include "common/image/image.h"
+
+namespace lightfarm::cli {
+
+struct TargetErrorArgs {
+  double target = 0;  // 0: off
+  std::string bench_dir;
+  std::string cache_dir;
+};
+
+void AddTargetErrorOptions(CLI::App* cmd, TargetErrorArgs& args);
+
+struct TargetErrorPlan {
+  bool active = false;
+  TargetChoice choice;
+  std::vector<std::string> user_params;  // the render's --param before the choice was added
+  std::vector<BenchRow> rows;
+};
+
+// Adds the chosen parameters to `settings` (a key the user set with --param is kept) and prints
+// the choice and its predicted time on stderr.
+TargetErrorPlan ApplyTargetError(const TargetErrorArgs& args, const std::string& scene,
+                                 RenderSettings* settings);
+
+// Prints the estimated error and, with a cached reference for these settings, the measured one.
+void ReportTargetError(const TargetErrorPlan& plan, const TargetErrorArgs& args,
+                       const std::string& scene, const RenderSettings& settings,
+                       const Image& image, double seconds);
+
+// The default cache directory ($LIGHTFARM_CACHE/bench, $XDG_CACHE_HOME/lightfarm/bench,
+// ~/.cache/lightfarm/bench).
+std::string DefaultBenchCacheDir();
+
+}  // namespace lightfarm::cli

@@ -1,0 +1,46 @@
+// From a bench's rows (results.csv) to its report: medians per setting, the time each method
+// needs to reach 5%, 2%, 1% rel_l2, gnuplot plots, error heatmaps at one equal-time point, a
+// contact sheet and report.md. Nothing here renders; the numbers come from the CSV only.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "common/bench/bench_run.h"
+
+namespace lightfarm {
+
+// The median over repeats of one (light count, method, setting).
+struct SettingSummary {
+  size_t lights = 0;
+  std::string method, setting;
+  int runs = 0;
+  double time_s = 0, rel_l2 = 0, rel_l1 = 0, shadow_rays_per_pixel = 0, shadow_rays = 0;
+  double elements = 0, peak_rss_mb = 0;
+  bool estimated = false;
+  std::string image;  // first repeat's image
+};
+
+// One summary per (lights, method, setting) in the order the rows first appear.
+std::vector<SettingSummary> Summarize(const std::vector<BenchRow>& rows);
+
+// Fastest median time among a method's settings (at `lights`) whose median rel_l2 <= error;
+// a negative value when no setting reached it.
+double TimeToReach(const std::vector<SettingSummary>& summaries, const std::string& method,
+                   size_t lights, double error);
+
+struct ReportOptions {
+  std::string out_dir;
+  std::string command;  // the command line that produced the rows, quoted in the report
+  bool run_gnuplot = true;
+  bool images = true;   // heatmaps and contact sheet (needs the rows' images)
+};
+
+// Writes report.md, plots/*.dat + plots.gp, error_vs_time.png, error_vs_lights.png,
+// heatmaps/*.png and contact_sheet.png into out_dir.
+void WriteBenchReport(const std::vector<BenchRow>& rows, const ReportOptions& options);
+
+// "nproc N, CPU model" of this machine.
+std::string MachineDescription();
+
+}  // namespace lightfarm

@@ -1,0 +1,68 @@
+// `lightfarm bench`: for each light count, the brute-force reference (cached), then every
+// method's sweep, each setting `repeats` times; one CSV row per run, appended and flushed as
+// soon as the run ends so that an interrupted bench keeps what it measured.
+#pragma once
+
+#include <atomic>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "common/bench/reference.h"
+#include "common/bench/sweeps.h"
+#include "common/farm/render_job.h"
+
+namespace lightfarm {
+
+struct BenchOptions {
+  std::string scene;
+  std::string out_dir;
+  std::vector<std::string> methods;   // empty: every registered method with a sweep
+  std::vector<size_t> lights = {10000};
+  int width = 0, height = 0;          // 0: the scene's Film
+  int spp = 1;
+  uint64_t seed = 0;
+  std::string filter;
+  std::vector<std::string> params;    // renderer --param entries shared by all runs (clamp=...)
+  int repeats = 3;
+  size_t reference_pixels = 0;        // 0: full-image reference
+  std::string cache_dir;              // reference cache; empty: no cache
+  bool keep_images = true;            // write each setting's first image (for heatmaps, contact sheet)
+};
+
+// One row of results.csv.
+struct BenchRow {
+  std::string scene, method, setting;
+  size_t lights = 0;
+  int width = 0, height = 0, spp = 0;
+  uint64_t seed = 0;
+  int repeat = 0;
+  double time_total_s = 0, time_plan_s = 0, time_gather_s = 0;
+  std::string phases;  // name=seconds;...
+  double shadow_rays = 0, shadow_rays_per_pixel = 0, elements = 0, fraction_evaluated = 0;
+  double rel_l2 = 0, rel_l1 = 0;
+  double peak_rss_mb = 0;
+  std::string reference;  // "full" or "pixels:N"
+  bool estimated = false;  // brute rows of a pixel-subset reference: time and rays extrapolated
+  std::string image;      // PNG/EXR of this run (first repeat), relative to the out dir
+};
+
+std::string BenchCsvHeader();
+std::string ToCsvLine(const BenchRow& row);
+// Parses results.csv (header checked); throws std::runtime_error on a malformed file.
+std::vector<BenchRow> ReadBenchCsv(const std::string& path);
+
+struct BenchProgress {
+  std::function<void(const std::string& label, size_t done, size_t total)> update;
+  const std::atomic<bool>* stop = nullptr;  // set (e.g. by SIGINT): finish the current run, stop
+};
+
+// Runs the bench, writing out_dir/results.csv (and images under out_dir/images). Returns the
+// rows written. Methods that fail (a scene they cannot render) are logged and skipped.
+std::vector<BenchRow> RunBench(const BenchOptions& options, const BenchProgress& progress);
+
+// Peak resident set size of this process since the last ResetPeakMemory(), in MiB.
+void ResetPeakMemory();
+double PeakMemoryMiB();
+
+}  // namespace lightfarm

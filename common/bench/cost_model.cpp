@@ -1,0 +1,83 @@
+#include "common/bench/cost_model.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+#include "common/bench/bench_report.h"
+#include "common/bench/reference.h"
+#include "common/util/error.h"
+
+namespace lightfarm {
+
+namespace {
+
+std::string G(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%g", v);
+  return buf;
+}
+
+}  // namespace
+
+std::filesystem::path CostModelPath(const std::string& cache_dir, const std::string& scene) {
+  return std::filesystem::path(cache_dir) / "models" / (SceneFilesHash(scene) + ".csv");
+}
+
+TargetChoice DefaultForTargetError(const std::string& method, double target) {
+  if (!(target > 0)) throw OptionError("--target-error must be positive");
+  TargetChoice c;
+  c.source = "documented default (no bench results for this scene)";
+  if (method == "lightcuts") {
+    c.params = {"error=" + G(std::min(target, 1.0))};
+  } else if (method == "mrcs") {
+    const long columns = std::clamp(std::lround(12.0 / target), 50L, 5000L);
+    c.params = {"rows=" + std::to_string(columns / 2), "columns=" + std::to_string(columns)};
+  } else if (method == "sparse-completion") {
+    c.params = {"rate=" + G(std::clamp(0.002 / target, 0.01, 0.5))};
+  } else {
+    throw OptionError("--target-error: no default for method \"" + method +
+                      "\"; run `lightfarm bench` on the scene first (or pass --bench-dir)");
+  }
+  for (const std::string& p : c.params) c.setting += (c.setting.empty() ? "" : ",") + p;
+  return c;
+}
+
+TargetChoice ChooseForTargetError(const std::string& method, double target,
+                                  const std::vector<BenchRow>& rows, const RenderSettings& s) {
+  if (!(target > 0)) throw OptionError("--target-error must be positive");
+  std::vector<BenchRow> mine;
+  for (const BenchRow& r : rows)
+    if (r.method == method) mine.push_back(r);
+  if (mine.empty()) return DefaultForTargetError(method, target);
+  // The bench light count closest to the request (in log scale).
+  size_t lights = mine.front().lights;
+  for (const BenchRow& r : mine)
+    if (std::abs(std::log(double(r.lights) / double(s.lights))) <
+        std::abs(std::log(double(lights) / double(s.lights))))
+      lights = r.lights;
+  const std::vector<SettingSummary> sums = Summarize(mine);
+  const SettingSummary* pick = nullptr;
+  for (const SettingSummary& m : sums)
+    if (m.lights == lights && m.rel_l2 <= target && (!pick || m.time_s < pick->time_s)) pick = &m;
+  TargetChoice c;
+  const BenchRow& any = mine.front();
+  c.source = "bench results (" + std::to_string(lights) + " lights, " + std::to_string(any.width) +
+             "x" + std::to_string(any.height) + ", " + std::to_string(any.spp) + " spp)";
+  if (!pick) {
+    for (const SettingSummary& m : sums)
+      if (m.lights == lights && (!pick || m.rel_l2 < pick->rel_l2)) pick = &m;
+    c.source += "; no setting reached the target, using the most accurate one";
+  }
+  c.setting = pick->setting;
+  c.params = SplitParams(pick->setting);
+  c.estimated_error = pick->rel_l2;
+  // Cost scales with the camera samples (receivers); lights enter through the bench count.
+  const double bench_samples = double(any.width) * any.height * any.spp;
+  const int w = s.width > 0 ? s.width : any.width, h = s.height > 0 ? s.height : any.height;
+  const double samples = double(w) * h * s.spp;
+  c.predicted_s = pick->time_s * (bench_samples > 0 ? samples / bench_samples : 1.0);
+  return c;
+}
+
+}  // namespace lightfarm

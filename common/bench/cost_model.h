@@ -1,0 +1,37 @@
+// `--target-error E` for render and submit: pick a method's parameters from what a bench
+// measured on the scene (its results.csv), else from documented defaults.
+#pragma once
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "common/bench/bench_run.h"
+
+namespace lightfarm {
+
+// Where `lightfarm bench` leaves a copy of a scene's results.csv: cache_dir/models/<hash of
+// the scene's files>.csv.
+std::filesystem::path CostModelPath(const std::string& cache_dir, const std::string& scene);
+
+struct TargetChoice {
+  std::vector<std::string> params;  // --param entries to add
+  std::string setting;              // the same, comma-joined
+  double predicted_s = -1;          // < 0: no measurement to predict from
+  double estimated_error = -1;      // median rel_l2 the bench measured for the setting
+  std::string source;               // what the choice is based on, for the user
+};
+
+// `rows`: a bench's results for this scene (may be empty). The bench's setting with the lowest
+// median time whose median rel_l2 <= target, at the bench light count closest to `lights`;
+// its time is scaled by the ratio of camera samples (width·height·spp). If no bench row reached
+// the target, the most accurate one (source says so). Without rows: DefaultForTargetError.
+// Throws OptionError for a method without a default and without bench rows.
+TargetChoice ChooseForTargetError(const std::string& method, double target,
+                                  const std::vector<BenchRow>& rows, const RenderSettings& settings);
+
+// Documented defaults (docs/accuracy.md): lightcuts error=E; mrcs columns=12/E (rows = half,
+// clamped to [50, 5000]); sparse-completion rate=0.002/E (clamped to [0.01, 0.5]).
+TargetChoice DefaultForTargetError(const std::string& method, double target);
+
+}  // namespace lightfarm

@@ -1,0 +1,86 @@
+#include "common/bench/sweeps.h"
+
+#include <algorithm>
+#include <sstream>
+#include <utility>
+
+#include "common/gather/gather.h"
+#include "common/util/error.h"
+
+namespace lightfarm {
+
+namespace {
+
+// One line per method: settings separated by ';', each a comma-separated --param list, from
+// the cheapest to the most accurate. Adding a method to the bench is adding its line here; a
+// line whose method is not registered (another branch not merged yet) is ignored.
+const std::vector<std::pair<std::string, std::string>>& SweepTable() {
+  static const std::vector<std::pair<std::string, std::string>> table = {
+      // Hašan 2007 uses rows:columns of 1:2 and 1:3 (Fig. 6).
+      {"mrcs", "rows=25,columns=50;rows=50,columns=100;rows=50,columns=150;rows=100,columns=200;"
+               "rows=100,columns=300;rows=200,columns=400;rows=300,columns=600;rows=300,columns=900"},
+      // Walter 2005: the per-receiver relative error bound (2% in the paper).
+      {"lightcuts", "error=0.2;error=0.1;error=0.05;error=0.02;error=0.01;error=0.005"},
+      // Huo 2015: sampling rate 1-20% (10% default).
+      {"sparse-completion", "rate=0.01;rate=0.02;rate=0.05;rate=0.1;rate=0.2"},
+      // Ou & Pellacini 2011: representative clusters per slice.
+      {"lightslice", "clusters=50;clusters=100;clusters=200;clusters=400;clusters=800"},
+      // Huo 2016: sampling ratio rho and the error threshold sigma.
+      {"adaptive-completion", "rho=0.02,sigma=0.05;rho=0.05,sigma=0.03;rho=0.1,sigma=0.02;"
+                              "rho=0.15,sigma=0.01;rho=0.2,sigma=0.005"},
+  };
+  return table;
+}
+
+MethodSweep ParseSweep(const std::string& method, const std::string& line) {
+  MethodSweep sweep;
+  sweep.method = method;
+  std::stringstream ss(line);
+  std::string label;
+  while (std::getline(ss, label, ';'))
+    if (!label.empty()) sweep.settings.push_back({label, SplitParams(label)});
+  return sweep;
+}
+
+bool IsRegistered(const std::string& name) {
+  const std::vector<std::string> names = GatherMethodNames();
+  return std::find(names.begin(), names.end(), name) != names.end();
+}
+
+}  // namespace
+
+std::vector<std::string> SplitParams(const std::string& label) {
+  std::vector<std::string> out;
+  std::stringstream ss(label);
+  std::string item;
+  while (std::getline(ss, item, ','))
+    if (!item.empty()) out.push_back(item);
+  return out;
+}
+
+std::vector<std::string> SweptMethodNames() {
+  std::vector<std::string> names;
+  for (const auto& [method, line] : SweepTable())
+    if (IsRegistered(method)) names.push_back(method);
+  return names;
+}
+
+std::vector<MethodSweep> SweepsFor(const std::vector<std::string>& methods) {
+  const std::vector<std::string> wanted = methods.empty() ? SweptMethodNames() : methods;
+  std::vector<MethodSweep> sweeps;
+  for (const std::string& name : wanted) {
+    if (name == "brute") continue;  // the reference: measured once per light set, not swept
+    if (!IsRegistered(name)) {
+      // Let the registry word the error (it lists the available methods).
+      CreateGatherMethod(name, OptionMap());
+    }
+    auto it = std::find_if(SweepTable().begin(), SweepTable().end(),
+                           [&](const auto& entry) { return entry.first == name; });
+    if (it == SweepTable().end())
+      throw OptionError("method \"" + name + "\" has no bench sweep (add a line to common/bench/sweeps.cpp)");
+    sweeps.push_back(ParseSweep(it->first, it->second));
+  }
+  return sweeps;
+}
+
+}  // namespace lightfarm

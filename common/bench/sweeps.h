@@ -1,0 +1,30 @@
+// What `lightfarm bench` sweeps: for each gather method, its quality knob over >= 5 settings.
+// A registered method takes part in a bench as soon as it has a line in the table (sweeps.cpp).
+#pragma once
+
+#include <string>
+#include <vector>
+
+namespace lightfarm {
+
+struct SweepSetting {
+  std::string label;                // e.g. "rows=50,columns=100"
+  std::vector<std::string> params;  // --param entries: {"rows=50", "columns=100"}
+};
+
+struct MethodSweep {
+  std::string method;
+  std::vector<SweepSetting> settings;  // cheapest first
+};
+
+// The sweeps of `methods` (all registered methods with a sweep entry when empty), in table
+// order. Throws OptionError for a name that is not registered or has no sweep entry.
+std::vector<MethodSweep> SweepsFor(const std::vector<std::string>& methods);
+
+// Registered methods that have a sweep entry (brute, the reference, has none).
+std::vector<std::string> SweptMethodNames();
+
+// Splits "a=1,b=2" into {"a=1", "b=2"}.
+std::vector<std::string> SplitParams(const std::string& label);
+
+}  // namespace lightfarm
