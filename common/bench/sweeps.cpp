@@ -23,11 +23,13 @@ const std::vector<std::pair<std::string, std::string>>& SweepTable() {
       {"lightcuts", "error=0.2;error=0.1;error=0.05;error=0.02;error=0.01;error=0.005"},
       // Huo 2015: sampling rate 1-20% (10% default).
       {"sparse-completion", "rate=0.01;rate=0.02;rate=0.05;rate=0.1;rate=0.2"},
-      // Ou & Pellacini 2011: representative clusters per slice.
-      {"lightslice", "clusters=50;clusters=100;clusters=200;clusters=400;clusters=800"},
+      // Ou & Pellacini 2011: global clusters and the per-slice refinement's clusters (2:3).
+      {"lightslice", "global_clusters=50,local_clusters=75;global_clusters=100,local_clusters=150;"
+                     "global_clusters=200,local_clusters=300;global_clusters=400,local_clusters=600;"
+                     "global_clusters=800,local_clusters=1200"},
       // Huo 2016: sampling ratio rho and the error threshold sigma.
-      {"adaptive-completion", "rho=0.02,sigma=0.05;rho=0.05,sigma=0.03;rho=0.1,sigma=0.02;"
-                              "rho=0.15,sigma=0.01;rho=0.2,sigma=0.005"},
+      {"adaptive-completion", "rho=0.05,sigma=0.05;rho=0.1,sigma=0.02;rho=0.1,sigma=0.01;"
+                              "rho=0.1,sigma=0.005;rho=0.2,sigma=0.002"},
   };
   return table;
 }
