@@ -205,7 +205,8 @@ nlohmann::json MakeStats(const Plan& plan, const RenderSettings& settings,
                     {"segments", 0},
                     {"camera_samples", plan.receivers.samples.size()},
                     {"specular_bounces", plan.receivers.stats.specular_bounces},
-                    {"escaped", plan.receivers.stats.escaped}};
+                    {"escaped", plan.receivers.stats.escaped},
+                    {"transmittance_evals", plan.receivers.stats.transmittance_evals}};
   s["slices"] = plan.tasks.size();
   s["tasks"] = outcome.tasks;
   const size_t nrows = plan.matrix->rows();
@@ -213,6 +214,7 @@ nlohmann::json MakeStats(const Plan& plan, const RenderSettings& settings,
   s["matrix"] = {{"rows", nrows},
                  {"cols", plan.lights.size()},
                  {"elements_evaluated", counters.elements},
+                 {"transmittance_evals", counters.transmittance_evals},
                  {"fraction_evaluated", full > 0 ? double(counters.elements) / full : 0.0}};
   const double pixels = double(plan.receivers.width) * plan.receivers.height;
   s["rays"] = {{"shadow", counters.shadow_rays},

@@ -66,7 +66,7 @@ std::vector<uint32_t> GetIndices(ByteReader& r) {
 }
 
 constexpr size_t kLightBytes = 4 * 3 * 5 + 4 + 1 + 1 + 1 + 1 + 4 + 4 + 1;
-constexpr size_t kPointBytes = 4 * 3 * 5 + 4 + 4 + 1;
+constexpr size_t kPointBytes = 4 * 3 * 5 + 4 + 4 + 1 + 2 + 2;
 constexpr size_t kSampleBytes = 4 + 4 + 12 + 4;
 
 }  // namespace
@@ -218,6 +218,8 @@ Bytes SerializeReceiverSet(const ReceiverSet& set) {
     w.U32(p.material);
     w.U32(p.sample);
     w.U8(p.depth);
+    w.U16(uint16_t(p.medium_out));
+    w.U16(uint16_t(p.medium_in));
   }
   return w.Take();
 }
@@ -255,6 +257,8 @@ ReceiverSet DeserializeReceiverSet(ByteView bytes) {
     p.material = r.U32();
     p.sample = r.U32();
     p.depth = r.U8();
+    p.medium_out = int16_t(r.U16());
+    p.medium_in = int16_t(r.U16());
     if (p.sample >= set.samples.size())
       throw SerializeError("receiver set: shading point names sample " + std::to_string(p.sample) +
                            " of " + std::to_string(set.samples.size()));

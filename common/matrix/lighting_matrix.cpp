@@ -40,6 +40,8 @@ LightingMatrix::LightingMatrix(const Scene& scene, const ReceiverSet& receivers,
     // pbrt's maxdepth bounds the scattering events on the whole path: camera side (depth) +
     // light side (VPL depth) must not exceed it.
     r.light_depth_budget = uint8_t(std::clamp(max_depth - int(sp.depth), 0, 255));
+    r.medium_out = sp.medium_out;
+    r.medium_in = sp.medium_in;
   }
 }
 
@@ -51,6 +53,11 @@ void LightingMatrix::EvaluateBatched(size_t n, EntryFn entry, SinkFn sink,
   std::array<RGB, kBatch> values;
   std::array<float, kBatch> unclamped;
   std::array<uint32_t, kBatch> slot;  // which entry of the batch a ray belongs to
+  std::array<Vec3, kBatch> origins, dirs;  // shadow segments (for transmittance in media)
+  std::array<float, kBatch> lengths;
+  std::array<int16_t, kBatch> start_medium;
+  std::array<uint64_t, kBatch> entry_key;
+  const bool media = scene_.has_media();
   for (size_t begin = 0; begin < n; begin += kBatch) {
     size_t count = std::min(kBatch, n - begin);
     size_t nrays = 0;
@@ -145,6 +152,16 @@ void LightingMatrix::EvaluateBatched(size_t n, EntryFn entry, SinkFn sink,
       ray.mask = 0xFFFFFFFFu;
       ray.id = uint32_t(nrays);
       ray.flags = 0;
+      if (media) {
+        // Generalized visibility (Huo 2016, Sec. 3): visibility × transmittance of the shadow
+        // segment, walked from the receiver's side (its medium is known) towards the light.
+        origins[nrays] = o;
+        float len = L.IsDirectional() ? kInfinity : Length(dir);
+        dirs[nrays] = L.IsDirectional() ? dir : dir / len;
+        lengths[nrays] = L.IsDirectional() ? kInfinity : len * tfar;
+        start_medium[nrays] = Dot(w, row.ng) > 0 ? row.medium_out : row.medium_in;
+        entry_key[nrays] = (uint64_t(ri) << 32) | lj;
+      }
       values[nrays] = value;
       unclamped[nrays] = scale_unclamped;
       slot[nrays] = uint32_t(k);
@@ -156,6 +173,13 @@ void LightingMatrix::EvaluateBatched(size_t n, EntryFn entry, SinkFn sink,
     counters->shadow_rays += nrays;
     for (size_t r = 0; r < nrays; ++r) {
       if (!(rays[r].tfar >= 0.f)) continue;  // occluded: Embree sets tfar = -inf
+      if (media) {
+        // Seeded by the element, so an element has the same value whichever method asks.
+        Rng rng(HashSeed({uint64_t(RngStream::kMedium), entry_key[r]}));
+        values[r] *= scene_.TransmittanceAlong(origins[r], dirs[r], lengths[r], start_medium[r], rng);
+        ++counters->transmittance_evals;
+        if (values[r].IsBlack()) continue;
+      }
       sink(begin + slot[r], values[r]);
       if (unclamped[r] != 1.f) {
         float lum = values[r].Luminance();

@@ -26,8 +26,10 @@ struct MatrixCounters {
   uint64_t shadow_rays = 0;  // occlusion rays cast (elements with a non-zero unshadowed value)
   double clamp_lost = 0;     // luminance removed by the clamp on visible elements
   double clamp_kept = 0;     // luminance of visible clamped-light elements after the clamp
+  uint64_t transmittance_evals = 0;  // visible connections attenuated through media (walks)
   void Add(const MatrixCounters& o) {
     elements += o.elements;
+    transmittance_evals += o.transmittance_evals;
     shadow_rays += o.shadow_rays;
     clamp_lost += o.clamp_lost;
     clamp_kept += o.clamp_kept;
@@ -69,6 +71,7 @@ class LightingMatrix {
     RGB throughput;
     uint32_t material;
     uint8_t light_depth_budget;  // max light-path depth this receiver may connect to
+    int16_t medium_out, medium_in;  // media on the ng / -ng side (ShadingPoint)
   };
   // Evaluates up to kBatch entries (unshadowed value + shadow ray), then visibility.
   template <typename EntryFn, typename SinkFn>

@@ -20,6 +20,7 @@ struct PathEnd {
   ShadingPoint point;
   int specular_bounces = 0;
   bool escaped = false;
+  size_t transmittance_evals = 0;
 };
 
 // Follows a camera ray through specular (delta) interactions to its first non-specular vertex,
@@ -28,9 +29,18 @@ PathEnd TraceCameraPath(const Scene& scene, Ray ray, int max_depth, Rng& rng) {
   PathEnd end;
   RGB beta(1.f);
   int depth = 0, passthrough = 0;
+  int medium = scene.camera_medium();
   for (;;) {
     SurfaceHit hit;
-    if (!scene.Intersect(ray, &hit)) {
+    bool found = scene.Intersect(ray, &hit);
+    // Attenuation of the surface (and emission) seen at the end of this ray segment: an
+    // unbiased transmittance estimate (closed form in homogeneous media).
+    if (medium >= 0) {
+      beta *= scene.media()[medium].Transmittance({ray.o, ray.d, found ? hit.t : kInfinity}, rng);
+      ++end.transmittance_evals;
+      if (beta.IsBlack()) return end;
+    }
+    if (!found) {
       end.emitted += beta * scene.EnvironmentRadiance(ray.d);
       end.escaped = true;
       return end;
@@ -40,8 +50,9 @@ PathEnd TraceCameraPath(const Scene& scene, Ray ray, int max_depth, Rng& rng) {
     const Shape& shape = scene.shapes()[hit.shape];
     const Material& m = scene.materials()[shape.material];
     uint32_t flags = MaterialFlags(m);
-    if (flags == 0) {  // interface: not a surface
+    if (flags == 0) {  // interface: not a surface, only the medium changes
       if (++passthrough > 64) return end;
+      medium = scene.MediumAfter(hit, ray.d, medium);
       ray.o = OffsetRayOrigin(hit.p, hit.ng, ray.d);
       continue;
     }
@@ -64,6 +75,8 @@ PathEnd TraceCameraPath(const Scene& scene, Ray ray, int max_depth, Rng& rng) {
       end.point.throughput = beta;
       end.point.material = uint32_t(shape.material);
       end.point.depth = uint8_t(std::min(depth, 255));
+      end.point.medium_out = int16_t(shape.medium_transition ? shape.outside_medium : medium);
+      end.point.medium_in = int16_t(shape.medium_transition ? shape.inside_medium : medium);
       return end;
     }
     if (depth >= max_depth) return end;
@@ -75,6 +88,7 @@ PathEnd TraceCameraPath(const Scene& scene, Ray ray, int max_depth, Rng& rng) {
     beta *= bs->f * (std::abs(bs->wi.z) / bs->pdf);
     if (beta.IsBlack() || !beta.IsFinite()) return end;
     ++end.specular_bounces;
+    medium = scene.MediumAfter(hit, wi, medium);
     ray = {OffsetRayOrigin(hit.p, hit.ng, wi), wi, kInfinity};
   }
 }
@@ -120,6 +134,7 @@ ReceiverSet GenerateReceivers(const Scene& scene, const FilterSampler& filter,
         cs.emitted = end.emitted;
         st.specular_bounces += end.specular_bounces;
         st.escaped += end.escaped;
+        st.transmittance_evals += end.transmittance_evals;
         if (end.has_point) {
           end.point.sample = uint32_t(index);
           points[index] = end.point;
@@ -140,6 +155,7 @@ ReceiverSet GenerateReceivers(const Scene& scene, const FilterSampler& filter,
     set.stats.specular_bounces += st.specular_bounces;
     set.stats.escaped += st.escaped;
     set.stats.nonfinite_rays += st.nonfinite_rays;
+    set.stats.transmittance_evals += st.transmittance_evals;
   }
   return set;
 }

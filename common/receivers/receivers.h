@@ -19,6 +19,9 @@ struct ShadingPoint {
   uint32_t material = 0;
   uint32_t sample = 0;  // index of the camera sample it belongs to
   uint8_t depth = 1;    // scattering events on the camera path, this vertex included
+  // Media on the two sides of the surface (indices into Scene::media(), -1 vacuum): medium_out
+  // on the side ng points to. Shadow connections towards w start in Dot(w, ng) > 0 ? out : in.
+  int16_t medium_out = -1, medium_in = -1;
 };
 
 struct CameraSample {
@@ -30,6 +33,7 @@ struct CameraSample {
 
 struct ReceiverStats {
   size_t camera_rays = 0, specular_bounces = 0, escaped = 0, nonfinite_rays = 0;
+  size_t transmittance_evals = 0;  // camera-ray segments attenuated through a medium
 };
 
 struct ReceiverSet {
