@@ -120,7 +120,8 @@ EmittedRay SampleEmission(const Scene& scene, const EmitterRef& e, Vec3 center, 
 
 // Traces one particle path and appends its surface VPLs (power not yet divided by #paths).
 void TraceParticlePath(const Scene& scene, const EmitterRef& e, float p_select, Vec3 center,
-                       float radius, int max_depth, Rng& rng, std::vector<VirtualLight>* out) {
+                       float radius, int max_depth, bool medium_lights, Rng& rng,
+                       std::vector<VirtualLight>* out) {
   EmittedRay em = SampleEmission(scene, e, center, radius, rng);
   if (!em.valid) return;
   RGB beta = em.beta / p_select;
@@ -142,8 +143,24 @@ void TraceParticlePath(const Scene& scene, const EmitterRef& e, float p_select, 
       if (!beta.IsFinite() || beta.IsBlack()) return;
       if (fp.scattered) {
         ++bounces;
-        if (bounces >= max_depth - 1) return;
         Vec3 x = ray.o + ray.d * fp.t;
+        if (medium_lights) {
+          // Delta tracking's collision density σ_t·T cancels in the estimator; the weight
+          // already holds σ_s/σ_t, so the event re-emits beta through the phase function.
+          VirtualLight v;
+          v.kind = VirtualLightKind::kMediumVPL;
+          v.p = x;
+          v.wi = -ray.d;
+          v.n = ray.d;
+          v.ng = ray.d;
+          v.power = beta;
+          v.g = med.g();
+          v.medium = int16_t(medium);
+          v.depth = uint8_t(std::min(bounces, 255));
+          v.caustic = through_specular;
+          if (IsFinite(x)) out->push_back(v);
+        }
+        if (bounces >= max_depth - 1) return;
         // HG phase sampling: the weight f_p/pdf is 1.
         Vec3 wnew = SampleHenyeyGreenstein(ray.d, med.g(), rng.Uniform(), rng.Uniform(), nullptr);
         if (bounces > 2) {
@@ -308,8 +325,8 @@ LightSet GenerateLights(const Scene& scene, const LightGenerationOptions& opt) {
                                    emitters.size() - 1);
       float lo = ei == 0 ? 0.f : cdf[ei - 1];
       float p_select = (cdf[ei] - lo) / float(total);
-      TraceParticlePath(scene, emitters[ei], p_select, center, radius, opt.max_depth, rng,
-                        &per_path[k]);
+      TraceParticlePath(scene, emitters[ei], p_select, center, radius, opt.max_depth,
+                        opt.medium_lights, rng, &per_path[k]);
     });
     // Consume whole paths in index order so the result is independent of scheduling.
     for (size_t k = 0; k < batch && produced < indirect_budget; ++k) {
@@ -324,6 +341,11 @@ LightSet GenerateLights(const Scene& scene, const LightGenerationOptions& opt) {
   const float inv_paths = 1.f / float(paths);
   for (VirtualLight& v : indirect_vpls) {
     v.power *= inv_paths;
+    if (v.kind == VirtualLightKind::kMediumVPL) {
+      ++set.stats.medium_vpls;
+      set.lights.push_back(v);
+      continue;
+    }
     if (v.caustic) ++set.stats.caustic_vpls;
     if (MaterialFlags(scene.materials()[v.material]) & kBxDFGlossy) ++set.stats.glossy_vpls;
     ++set.stats.surface_vpls;

@@ -24,11 +24,25 @@ struct ShadingPoint {
   int16_t medium_out = -1, medium_in = -1;
 };
 
+// A receiver along a camera ray inside a medium (Huo 2016, Sec. 3: eye rays through media
+// become segments): in-scattered radiance along o + t·d, t ∈ [0, length], reaching the camera
+// with `throughput` (camera weight × transmittance from the camera up to o).
+struct EyeSegment {
+  Vec3 o, d;            // start, unit direction of travel of the camera ray (away from camera)
+  float length = 0;
+  RGB throughput;
+  int16_t medium = -1;  // the medium the segment lies in
+  uint8_t depth = 1;    // scattering events on the camera path, the in-scattering included
+  uint32_t sample = 0;  // index of the camera sample it belongs to
+};
+
 struct CameraSample {
   uint32_t pixel = 0;     // y * width + x
   float weight = 0;       // filter weight f(p)/pdf(p)
   RGB emitted;            // emission seen directly along the camera path (emitters, environment)
   int32_t point = -1;     // index of its shading point, -1 if the path ended without one
+  int32_t first_segment = -1;  // its eye segments: [first_segment, first_segment + segment_count)
+  uint32_t segment_count = 0;
 };
 
 struct ReceiverStats {
@@ -40,6 +54,7 @@ struct ReceiverSet {
   int width = 0, height = 0, spp = 1;
   std::vector<CameraSample> samples;  // pixel-major: sample s of pixel p is p * spp + s
   std::vector<ShadingPoint> points;   // in sample order
+  std::vector<EyeSegment> segments;   // in sample order (empty unless segments_per_ray >= 0)
   ReceiverStats stats;
 };
 
@@ -47,6 +62,9 @@ struct ReceiverOptions {
   int spp = 1;
   uint64_t seed = 0;
   int max_depth = 5;
+  // Eye rays through media become h + 1 segments split at h points placed by delta tracking
+  // (Huo 2016: h = 16). -1: no segments (the camera ray is only attenuated).
+  int segments_per_ray = -1;
 };
 
 // Deterministic: every pixel draws from its own hashed generator and scrambled Sobol points.
