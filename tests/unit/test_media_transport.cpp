@@ -83,3 +83,31 @@ TEST(MediaTransport, SurfaceOnlySceneDoesNoMediaWork) {
 
 }  // namespace
 }  // namespace lightfarm
+
+namespace lightfarm {
+namespace {
+
+// The media scene under brute: eye segments (h + 1 per ray in the gas) and medium VPLs exist,
+// each segment row lands in its pixel, and the image stays finite.
+TEST(MediaTransport, MediaSceneHasSegmentsAndMediumLights) {
+  RenderSettings s;
+  s.width = s.height = 6;
+  s.lights = 60;
+  s.params = {"segments_per_ray=3"};
+  RenderOutput out = RenderScene(testing::SharedScene("volumetric-caustic"), s);
+  const auto& st = out.stats;
+  EXPECT_GT(st["receivers"]["segments"].get<uint64_t>(), st["receivers"]["camera_samples"].get<uint64_t>());
+  EXPECT_LE(st["receivers"]["segments"].get<uint64_t>(), 4 * st["receivers"]["camera_samples"].get<uint64_t>());
+  EXPECT_GT(st["lights"]["medium_vpl"].get<uint64_t>(), 0u);
+  EXPECT_GT(st["matrix"]["transmittance_evals"].get<uint64_t>(), 0u);
+  EXPECT_EQ(st["film"]["nan_samples"], 0);
+  double sum = 0;
+  for (const RGB& p : out.image.pixels) {
+    ASSERT_TRUE(p.IsFinite());
+    sum += double(p.Luminance());
+  }
+  EXPECT_GT(sum, 0.0);
+}
+
+}  // namespace
+}  // namespace lightfarm
