@@ -41,6 +41,7 @@ RGB LightingMatrix::SegmentElement(uint32_t si, uint32_t col, MatrixCounters* co
   for (int k = 0; k < n; ++k) {
     float u = Clamp((float(k) + rng.Uniform()) / float(n), 0.f, 0x1.fffffep-1f);
     float t, pdf;
+    RGB analog_weight(0.f);
     if (!directional) {
       // Kulla & Fajardo 2012: pdf ∝ 1/(D² + (t-Δ)²), i.e. uniform in the subtended angle.
       t = Clamp(delta + dist * std::tan(theta_a + u * (theta_b - theta_a)), 0.f, len);
@@ -51,10 +52,16 @@ RGB LightingMatrix::SegmentElement(uint32_t si, uint32_t col, MatrixCounters* co
       t = Clamp(-std::log1p(-u * norm) / st, 0.f, len);
       pdf = st * std::exp(-st * t) / norm;
     } else {
-      t = u * len;
-      pdf = 1.f / len;
+      // Heterogeneous medium, directional light: delta tracking samples t ∝ σ_t(t)·T(0→t),
+      // which cancels those factors and leaves its weight σ_s/σ_t (a miss contributes 0).
+      FreePathSample fp = med.SampleFreePath({seg.o, seg.d, len}, rng);
+      ++counters->transmittance_evals;
+      if (!fp.scattered) continue;
+      t = fp.t;
+      pdf = 0;  // marks the analog estimate below
+      analog_weight = fp.weight;
     }
-    if (!(pdf > 0) || !std::isfinite(pdf)) continue;
+    if (pdf < 0 || !std::isfinite(pdf)) continue;
     Vec3 y = seg.o + seg.d * t;
     Vec3 w, target;
     float geometry = 1.f;
@@ -74,12 +81,16 @@ RGB LightingMatrix::SegmentElement(uint32_t si, uint32_t col, MatrixCounters* co
     if (intensity.IsBlack()) continue;
     // Light travelling along -w scatters into the camera ray's reverse direction -seg.d.
     float phase = HenyeyGreenstein(Dot(w, seg.d), med.g());
-    RGB sigma_s = med.sigma_s() * med.Density(y);
-    if (sigma_s.IsBlack()) continue;
-    RGB t_seg = med.Transmittance({seg.o, seg.d, t}, rng);
-    if (!med.homogeneous()) ++counters->transmittance_evals;
-    RGB value = seg.throughput * sigma_s * t_seg * intensity *
-                (phase * geometry / (pdf * float(n)));
+    RGB value;
+    if (pdf == 0) {
+      value = seg.throughput * analog_weight * intensity * (phase * geometry / float(n));
+    } else {
+      RGB sigma_s = med.sigma_s() * med.Density(y);
+      if (sigma_s.IsBlack()) continue;
+      RGB t_seg = med.Transmittance({seg.o, seg.d, t}, rng);
+      if (!med.homogeneous()) ++counters->transmittance_evals;
+      value = seg.throughput * sigma_s * t_seg * intensity * (phase * geometry / (pdf * float(n)));
+    }
     if (value.IsBlack() || !value.IsFinite()) continue;
     Vec3 dir = directional ? w : target - y;
     float tfar = directional ? kInfinity : 1.f - 1e-4f;
