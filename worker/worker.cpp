@@ -270,6 +270,9 @@ std::shared_ptr<Worker::JobRuntime> Worker::Runtime(const v1::JobContext& job) {
     rt->tree = std::make_unique<LightTree>(LightTree::Build(rt->lights, settings.seed));
   MatrixOptions mopt;
   mopt.clamp = job.clamp();
+  // Samples per eye-segment element (media); the plan reads and validates the same key.
+  mopt.segment_samples =
+      int(OptionMap::Parse(settings.params).GetInt("segment_samples", 4, 1, 64));
   rt->matrix = std::make_unique<LightingMatrix>(*rt->scene, rt->receivers, rt->lights, mopt);
   runtime_ = rt;
   return rt;

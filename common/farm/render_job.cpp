@@ -76,6 +76,10 @@ Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, Ph
   SlicingOptions slicing;
   slicing.rows_per_slice = size_t(params.GetInt("rows_per_slice", 800, 1, 1 << 24));
   slicing.seed = settings.seed;
+  // Media rows and columns (eye segments, medium VPLs): h split points per eye ray (Huo 2016:
+  // 16) and samples per segment element.
+  const int segments_per_ray = int(params.GetInt("segments_per_ray", 16, 0, 1024));
+  plan.matrix_options.segment_samples = int(params.GetInt("segment_samples", 4, 1, 64));
   // `auto` resolves once the scene's effects are known (below); until then only its own
   // parameter can be checked, and a typo in the others is reported after the scene is built.
   const bool auto_method = settings.method == kAutoMethod;
@@ -104,6 +108,10 @@ Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, Ph
     plan.method_rule = choice.rule;
     params.RejectUnused();
   }
+  // Eye segments and medium VPLs exist only when a medium is reachable, and only for gather
+  // methods that evaluate those rows and columns (brute; the light tree knows surface kinds
+  // only). Other methods still see media as attenuation of surface transport.
+  const bool media_rows = plan.effects.media && plan.method->name() == "brute";
   timer.End("build");
 
   std::unique_ptr<Filter> filter = MakeFilter(scene.hints());
@@ -112,6 +120,7 @@ Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, Ph
   ropt.spp = settings.spp;
   ropt.seed = settings.seed;
   ropt.max_depth = scene.hints().max_depth;
+  ropt.segments_per_ray = media_rows ? segments_per_ray : -1;
   plan.receivers = GenerateReceivers(scene, filter_sampler, ropt);
   timer.End("receivers");
 
@@ -120,6 +129,7 @@ Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, Ph
   lopt.direct_fraction = direct_fraction;
   lopt.max_depth = scene.hints().max_depth;
   lopt.seed = settings.seed;
+  lopt.medium_lights = media_rows;
   plan.lights = GenerateLights(scene, lopt);
   timer.End("lights");
   if (plan.method->needs_light_tree()) {
@@ -138,6 +148,17 @@ Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, Ph
     task.seed = settings.seed;
     task.rows = std::move(slice.rows);
     task.neighbors = std::move(slice.neighbors);
+    plan.tasks.push_back(std::move(task));
+  }
+  // Eye-segment rows (after the point rows): tasks of consecutive segments, which are in pixel
+  // order and so spatially coherent.
+  const size_t npoints = plan.matrix->point_rows();
+  for (size_t first = 0; first < plan.receivers.segments.size(); first += slicing.rows_per_slice) {
+    SubMatrixTask task;
+    task.task_id = uint32_t(plan.tasks.size());
+    task.seed = settings.seed;
+    size_t last = std::min(plan.receivers.segments.size(), first + slicing.rows_per_slice);
+    for (size_t s = first; s < last; ++s) task.rows.push_back(uint32_t(npoints + s));
     plan.tasks.push_back(std::move(task));
   }
   timer.End("plan");
@@ -188,6 +209,10 @@ Image AssembleImage(const Plan& plan, const std::vector<RGBAccum>& row_sums, uin
     RGBAccum L;
     L.Add(cs.emitted);
     if (cs.point >= 0) L.Add(row_sums[cs.point]);
+    // In-scattered light along the sample's eye segments (rows after the point rows).
+    const size_t npoints = plan.receivers.points.size();
+    for (uint32_t k = 0; k < cs.segment_count; ++k)
+      L.Add(row_sums[npoints + size_t(cs.first_segment) + k]);
     film.AddSample(int(cs.pixel), L.ToRGB(), cs.weight);
   }
   if (nan_samples) *nan_samples = film.nan_samples();
@@ -210,6 +235,7 @@ nlohmann::json MakeStats(const Plan& plan, const RenderSettings& settings,
   s["effects"] = plan.effects.Names();
   s["lights"] = {{"vpl", ls.area_vpls + ls.surface_vpls},
                  {"vrl", 0},
+                 {"medium_vpl", ls.medium_vpls},
                  {"total", plan.lights.size()},
                  {"requested", settings.lights},
                  {"area_vpl", ls.area_vpls},
@@ -220,10 +246,11 @@ nlohmann::json MakeStats(const Plan& plan, const RenderSettings& settings,
                  {"directional", ls.directional_lights},
                  {"particle_paths", ls.particle_paths}};
   s["receivers"] = {{"points", plan.receivers.points.size()},
-                    {"segments", 0},
+                    {"segments", plan.receivers.segments.size()},
                     {"camera_samples", plan.receivers.samples.size()},
                     {"specular_bounces", plan.receivers.stats.specular_bounces},
-                    {"escaped", plan.receivers.stats.escaped}};
+                    {"escaped", plan.receivers.stats.escaped},
+                    {"transmittance_evals", plan.receivers.stats.transmittance_evals}};
   s["slices"] = plan.tasks.size();
   s["tasks"] = outcome.tasks;
   const size_t nrows = plan.matrix->rows();
@@ -231,6 +258,7 @@ nlohmann::json MakeStats(const Plan& plan, const RenderSettings& settings,
   s["matrix"] = {{"rows", nrows},
                  {"cols", plan.lights.size()},
                  {"elements_evaluated", counters.elements},
+                 {"transmittance_evals", counters.transmittance_evals},
                  {"fraction_evaluated", full > 0 ? double(counters.elements) / full : 0.0}};
   const double pixels = double(plan.receivers.width) * plan.receivers.height;
   s["rays"] = {{"shadow", counters.shadow_rays},

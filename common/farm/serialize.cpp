@@ -48,10 +48,12 @@ RGB GetRGB(ByteReader& r) { RGB c; c.r = r.F32(); c.g = r.F32(); c.b = r.F32(); 
 
 void PutCounters(ByteWriter& w, const MatrixCounters& c) {
   w.U64(c.elements); w.U64(c.shadow_rays); w.F64(c.clamp_lost); w.F64(c.clamp_kept);
+  w.U64(c.transmittance_evals);
 }
 MatrixCounters GetCounters(ByteReader& r) {
   MatrixCounters c;
   c.elements = r.U64(); c.shadow_rays = r.U64(); c.clamp_lost = r.F64(); c.clamp_kept = r.F64();
+  c.transmittance_evals = r.U64();
   return c;
 }
 
@@ -65,9 +67,10 @@ std::vector<uint32_t> GetIndices(ByteReader& r) {
   return v;
 }
 
-constexpr size_t kLightBytes = 4 * 3 * 5 + 4 + 1 + 1 + 1 + 1 + 4 + 4 + 1;
-constexpr size_t kPointBytes = 4 * 3 * 5 + 4 + 4 + 1;
-constexpr size_t kSampleBytes = 4 + 4 + 12 + 4;
+constexpr size_t kLightBytes = 4 * 3 * 5 + 4 + 1 + 1 + 1 + 1 + 4 + 4 + 1 + 4 + 2;
+constexpr size_t kPointBytes = 4 * 3 * 5 + 4 + 4 + 1 + 2 + 2;
+constexpr size_t kSampleBytes = 4 + 4 + 12 + 4 + 4 + 4;
+constexpr size_t kSegmentBytes = 12 + 12 + 4 + 12 + 2 + 1 + 4;
 
 }  // namespace
 
@@ -147,7 +150,7 @@ Bytes SerializeLightSet(const LightSet& set) {
   WriteHeader(w, Kind::kLightSet);
   const LightSetStats& s = set.stats;
   for (size_t v : {s.area_vpls, s.surface_vpls, s.point_lights, s.directional_lights,
-                   s.particle_paths, s.caustic_vpls, s.glossy_vpls})
+                   s.particle_paths, s.caustic_vpls, s.glossy_vpls, s.medium_vpls})
     w.U64(v);
   w.U64(set.lights.size());
   for (const VirtualLight& l : set.lights) {
@@ -161,6 +164,8 @@ Bytes SerializeLightSet(const LightSet& set) {
     w.F32(l.cos_falloff_start);
     w.F32(l.cos_falloff_end);
     w.U8(l.spot);
+    w.F32(l.g);
+    w.U16(uint16_t(l.medium));
   }
   return w.Take();
 }
@@ -171,7 +176,7 @@ LightSet DeserializeLightSet(ByteView bytes) {
   LightSet set;
   LightSetStats& s = set.stats;
   for (size_t* v : {&s.area_vpls, &s.surface_vpls, &s.point_lights, &s.directional_lights,
-                    &s.particle_paths, &s.caustic_vpls, &s.glossy_vpls})
+                    &s.particle_paths, &s.caustic_vpls, &s.glossy_vpls, &s.medium_vpls})
     *v = size_t(r.U64());
   set.lights.resize(r.Count(kLightBytes));
   for (VirtualLight& l : set.lights) {
@@ -179,7 +184,7 @@ LightSet DeserializeLightSet(ByteView bytes) {
     l.power = GetRGB(r);
     l.material = r.U32();
     uint8_t kind = r.U8();
-    if (kind > uint8_t(VirtualLightKind::kDirectional))
+    if (kind > uint8_t(VirtualLightKind::kMediumVPL))
       throw SerializeError("light set: invalid light kind " + std::to_string(kind));
     l.kind = VirtualLightKind(kind);
     l.depth = r.U8();
@@ -188,6 +193,8 @@ LightSet DeserializeLightSet(ByteView bytes) {
     l.cos_falloff_start = r.F32();
     l.cos_falloff_end = r.F32();
     l.spot = r.Bool();
+    l.g = r.F32();
+    l.medium = int16_t(r.U16());
   }
   r.ExpectEnd();
   return set;
@@ -210,6 +217,8 @@ Bytes SerializeReceiverSet(const ReceiverSet& set) {
     w.F32(c.weight);
     PutRGB(w, c.emitted);
     w.U32(uint32_t(c.point));
+    w.U32(uint32_t(c.first_segment));
+    w.U32(c.segment_count);
   }
   w.U64(set.points.size());
   for (const ShadingPoint& p : set.points) {
@@ -218,6 +227,17 @@ Bytes SerializeReceiverSet(const ReceiverSet& set) {
     w.U32(p.material);
     w.U32(p.sample);
     w.U8(p.depth);
+    w.U16(uint16_t(p.medium_out));
+    w.U16(uint16_t(p.medium_in));
+  }
+  w.U64(set.segments.size());
+  for (const EyeSegment& e : set.segments) {
+    PutVec3(w, e.o); PutVec3(w, e.d);
+    w.F32(e.length);
+    PutRGB(w, e.throughput);
+    w.U16(uint16_t(e.medium));
+    w.U8(e.depth);
+    w.U32(e.sample);
   }
   return w.Take();
 }
@@ -244,6 +264,8 @@ ReceiverSet DeserializeReceiverSet(ByteView bytes) {
     c.weight = r.F32();
     c.emitted = GetRGB(r);
     c.point = int32_t(r.U32());
+    c.first_segment = int32_t(r.U32());
+    c.segment_count = r.U32();
     if (c.pixel >= pixels)
       throw SerializeError("receiver set: sample pixel " + std::to_string(c.pixel) +
                            " outside the image");
@@ -255,14 +277,32 @@ ReceiverSet DeserializeReceiverSet(ByteView bytes) {
     p.material = r.U32();
     p.sample = r.U32();
     p.depth = r.U8();
+    p.medium_out = int16_t(r.U16());
+    p.medium_in = int16_t(r.U16());
     if (p.sample >= set.samples.size())
       throw SerializeError("receiver set: shading point names sample " + std::to_string(p.sample) +
                            " of " + std::to_string(set.samples.size()));
   }
-  for (const CameraSample& c : set.samples)
+  set.segments.resize(r.Count(kSegmentBytes));
+  for (EyeSegment& e : set.segments) {
+    e.o = GetVec3(r); e.d = GetVec3(r);
+    e.length = r.F32();
+    e.throughput = GetRGB(r);
+    e.medium = int16_t(r.U16());
+    e.depth = r.U8();
+    e.sample = r.U32();
+    if (e.sample >= set.samples.size())
+      throw SerializeError("receiver set: eye segment names sample " + std::to_string(e.sample) +
+                           " of " + std::to_string(set.samples.size()));
+  }
+  for (const CameraSample& c : set.samples) {
     if (c.point < -1 || (c.point >= 0 && size_t(c.point) >= set.points.size()))
       throw SerializeError("receiver set: sample names shading point " + std::to_string(c.point) +
                            " of " + std::to_string(set.points.size()));
+    if (c.segment_count > 0 &&
+        (c.first_segment < 0 || size_t(c.first_segment) + c.segment_count > set.segments.size()))
+      throw SerializeError("receiver set: sample names eye segments out of range");
+  }
   r.ExpectEnd();
   return set;
 }

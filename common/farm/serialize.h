@@ -29,7 +29,7 @@ using Bytes = std::vector<uint8_t>;
 using ByteView = std::span<const uint8_t>;
 
 // Bumped whenever an encoding below changes; a decoder refuses other versions.
-inline constexpr uint16_t kSerializeVersion = 1;
+inline constexpr uint16_t kSerializeVersion = 2;  // 2: media on shading points, medium VPLs
 
 Bytes SerializeLightSet(const LightSet& lights);
 LightSet DeserializeLightSet(ByteView bytes);

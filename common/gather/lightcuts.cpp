@@ -327,6 +327,7 @@ EmissionBound LightEmissionBound(const VirtualLight& l, const std::vector<Materi
     }
     case VirtualLightKind::kPoint:
     case VirtualLightKind::kDirectional:
+    case VirtualLightKind::kMediumVPL:  // never generated for lightcuts (render_job.cpp)
       e.diffuse_front = 1;  // unused: these kinds have no emission-side factor above 1
       break;
   }

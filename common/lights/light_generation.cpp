@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "common/scene/phase.h"
 #include "common/util/rng.h"
 #include "common/util/sampling.h"
 
@@ -43,6 +44,7 @@ struct EmittedRay {
   Ray ray;
   RGB beta;
   Vec3 ng;  // emitter surface normal (area lights), for the origin offset
+  int medium = -1;  // the medium the ray starts in
   bool valid = false;
 };
 
@@ -65,6 +67,9 @@ EmittedRay SampleEmission(const Scene& scene, const EmitterRef& e, Vec3 center, 
       out.beta = a.L * (a.area * kPi * (a.two_sided ? 2.f : 1.f));
       out.ray = {OffsetRayOrigin(p, n, d), d, kInfinity};
       out.ng = n;
+      const Shape& sh = scene.shapes()[a.shape];
+      out.medium = sh.medium_transition ? (Dot(d, n) > 0 ? sh.outside_medium : sh.inside_medium)
+                                        : sh.outside_medium;
       break;
     }
     case EmitterRef::kPoint: {
@@ -81,6 +86,7 @@ EmittedRay SampleEmission(const Scene& scene, const EmitterRef& e, Vec3 center, 
       }
       out.beta = pe.intensity * (pe.Falloff(d) / pdf);
       out.ray = {pe.position, d, kInfinity};
+      out.medium = pe.medium;
       break;
     }
     case EmitterRef::kDistant: {
@@ -90,6 +96,7 @@ EmittedRay SampleEmission(const Scene& scene, const EmitterRef& e, Vec3 center, 
       Vec3 o = center - de.direction * radius + f.s * pd.x + f.t * pd.y;
       out.beta = de.L * (kPi * radius * radius);
       out.ray = {o, de.direction, kInfinity};
+      out.medium = de.medium;
       break;
     }
     case EmitterRef::kInfinite: {
@@ -102,6 +109,7 @@ EmittedRay SampleEmission(const Scene& scene, const EmitterRef& e, Vec3 center, 
       Vec3 o = center + w * radius + f.s * pd.x + f.t * pd.y;
       out.beta = ie.Le(w) * (kPi * radius * radius / pdf);
       out.ray = {o, -w, kInfinity};
+      out.medium = ie.medium;
       break;
     }
   }
@@ -112,24 +120,67 @@ EmittedRay SampleEmission(const Scene& scene, const EmitterRef& e, Vec3 center, 
 
 // Traces one particle path and appends its surface VPLs (power not yet divided by #paths).
 void TraceParticlePath(const Scene& scene, const EmitterRef& e, float p_select, Vec3 center,
-                       float radius, int max_depth, Rng& rng, std::vector<VirtualLight>* out) {
+                       float radius, int max_depth, bool medium_lights, Rng& rng,
+                       std::vector<VirtualLight>* out) {
   EmittedRay em = SampleEmission(scene, e, center, radius, rng);
   if (!em.valid) return;
   RGB beta = em.beta / p_select;
   const float beta0 = std::max(beta.Max(), 1e-30f);
   Ray ray = em.ray;
+  int medium = em.medium;
   bool through_specular = false;
   int bounces = 0;      // scattering events so far
   int passthrough = 0;  // interface crossings (not scattering)
   while (bounces < max_depth - 1) {
     SurfaceHit hit;
-    if (!scene.Intersect(ray, &hit)) return;
+    bool found = scene.Intersect(ray, &hit);
+    if (medium >= 0) {
+      // Delta tracking decides whether the particle scatters in the medium before the surface.
+      const Medium& med = scene.media()[medium];
+      MediumRay mray{ray.o, ray.d, found ? hit.t : kInfinity};
+      FreePathSample fp = med.SampleFreePath(mray, rng);
+      beta *= fp.weight;
+      if (!beta.IsFinite() || beta.IsBlack()) return;
+      if (fp.scattered) {
+        ++bounces;
+        Vec3 x = ray.o + ray.d * fp.t;
+        if (medium_lights) {
+          // Delta tracking's collision density σ_t·T cancels in the estimator; the weight
+          // already holds σ_s/σ_t, so the event re-emits beta through the phase function.
+          VirtualLight v;
+          v.kind = VirtualLightKind::kMediumVPL;
+          v.p = x;
+          v.wi = -ray.d;
+          v.n = ray.d;
+          v.ng = ray.d;
+          v.power = beta;
+          v.g = med.g();
+          v.medium = int16_t(medium);
+          v.depth = uint8_t(std::min(bounces, 255));
+          v.caustic = through_specular;
+          if (IsFinite(x)) out->push_back(v);
+        }
+        if (bounces >= max_depth - 1) return;
+        // HG phase sampling: the weight f_p/pdf is 1.
+        Vec3 wnew = SampleHenyeyGreenstein(ray.d, med.g(), rng.Uniform(), rng.Uniform(), nullptr);
+        if (bounces > 2) {
+          float q = std::min(1.f, beta.Max() / beta0);
+          if (rng.Uniform() >= q) return;
+          beta = beta / q;
+        }
+        ray = {x, wnew, kInfinity};
+        if (!IsFinite(ray.o) || !IsFinite(ray.d)) return;
+        continue;
+      }
+    }
+    if (!found) return;
     const Shape& shape = scene.shapes()[hit.shape];
     const Material& m = scene.materials()[shape.material];
     uint32_t flags = MaterialFlags(m);
     Vec3 wo = -ray.d;
-    if (flags == 0) {  // interface: no surface, continue straight through
+    if (flags == 0) {  // interface: no surface, continue straight through into the next medium
       if (++passthrough > 64) return;
+      medium = scene.MediumAfter(hit, ray.d, medium);
       ray.o = OffsetRayOrigin(hit.p, hit.ng, ray.d);
       continue;
     }
@@ -165,6 +216,7 @@ void TraceParticlePath(const Scene& scene, const EmitterRef& e, float p_select, 
     bool same_side = Dot(wi, hit.ng) * Dot(wo, hit.ng) > 0;
     if (same_side != ((bs->flags & kBxDFReflection) != 0)) return;
     through_specular = through_specular || bs->IsSpecular();
+    medium = scene.MediumAfter(hit, wi, medium);
     // Russian roulette on throughput relative to the emitted flux.
     if (bounces > 2) {
       float q = std::min(1.f, beta.Max() / beta0);
@@ -273,8 +325,8 @@ LightSet GenerateLights(const Scene& scene, const LightGenerationOptions& opt) {
                                    emitters.size() - 1);
       float lo = ei == 0 ? 0.f : cdf[ei - 1];
       float p_select = (cdf[ei] - lo) / float(total);
-      TraceParticlePath(scene, emitters[ei], p_select, center, radius, opt.max_depth, rng,
-                        &per_path[k]);
+      TraceParticlePath(scene, emitters[ei], p_select, center, radius, opt.max_depth,
+                        opt.medium_lights, rng, &per_path[k]);
     });
     // Consume whole paths in index order so the result is independent of scheduling.
     for (size_t k = 0; k < batch && produced < indirect_budget; ++k) {
@@ -289,6 +341,11 @@ LightSet GenerateLights(const Scene& scene, const LightGenerationOptions& opt) {
   const float inv_paths = 1.f / float(paths);
   for (VirtualLight& v : indirect_vpls) {
     v.power *= inv_paths;
+    if (v.kind == VirtualLightKind::kMediumVPL) {
+      ++set.stats.medium_vpls;
+      set.lights.push_back(v);
+      continue;
+    }
     if (v.caustic) ++set.stats.caustic_vpls;
     if (MaterialFlags(scene.materials()[v.material]) & kBxDFGlossy) ++set.stats.glossy_vpls;
     ++set.stats.surface_vpls;

@@ -15,6 +15,9 @@ struct LightGenerationOptions {
   float direct_fraction = 0.5f;
   int max_depth = 5;        // the scene's path depth (Integrator maxdepth)
   uint64_t seed = 0;
+  // Leave a kMediumVPL at every particle scattering event in a medium (only for gather methods
+  // that evaluate them; otherwise particles still scatter and attenuate in media).
+  bool medium_lights = false;
 };
 
 // Deterministic for a given seed whatever the thread count: every path and every emitter sample

@@ -21,6 +21,11 @@ enum class VirtualLightKind : uint8_t {
   // Light from a direction (distant lights, importance samples of infinite lights):
   // irradiance `power` on a surface facing it; `n` is the direction the light travels.
   kDirectional,
+  // A particle-path scattering event inside a medium (a VPL in a medium): re-emits `power`
+  // through the Henyey–Greenstein phase function, I(ω) = power · p_g(-wi · ω), with wi the unit
+  // direction towards where the light came from. Generated only for gather methods that handle
+  // media rows (see render_job.cpp); the light tree does not know this kind.
+  kMediumVPL,
 };
 
 struct VirtualLight {
@@ -36,11 +41,14 @@ struct VirtualLight {
   bool caustic = false;   // surface VPL whose light path went through a specular interaction
   float cos_falloff_start = 1, cos_falloff_end = -1;  // spot cone (kPoint with spot)
   bool spot = false;
+  float g = 0;            // medium VPL: HG asymmetry of its medium
+  int16_t medium = -1;    // medium VPL: the medium it sits in
 
   bool IsDirectional() const { return kind == VirtualLightKind::kDirectional; }
   // Subject to the geometry-term clamp (virtual lights only; real point lights are exact).
   bool IsClamped() const {
-    return kind == VirtualLightKind::kAreaVPL || kind == VirtualLightKind::kSurfaceVPL;
+    return kind == VirtualLightKind::kAreaVPL || kind == VirtualLightKind::kSurfaceVPL ||
+           kind == VirtualLightKind::kMediumVPL;
   }
 };
 
@@ -49,6 +57,7 @@ struct LightSetStats {
   size_t particle_paths = 0;
   size_t caustic_vpls = 0;  // surface VPLs whose path went through a specular interaction
   size_t glossy_vpls = 0;   // surface VPLs on materials with a glossy lobe
+  size_t medium_vpls = 0;   // particle scattering events in media (kMediumVPL)
 };
 
 struct LightSet {

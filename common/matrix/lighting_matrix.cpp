@@ -5,6 +5,9 @@
 #include <array>
 #include <cmath>
 
+#include "common/scene/phase.h"
+#include "common/util/sampling.h"
+
 namespace lightfarm {
 
 namespace {
@@ -19,13 +22,54 @@ struct Unshadowed {
   float tfar = 0;
 };
 
+// Intensity light L sends towards a point seen from it along -w (w: unit, point → light);
+// zero where it does not emit. Shared by surface rows and eye-segment rows.
 }  // namespace
+
+RGB LightIntensityTowards(const VirtualLight& L, Vec3 w, const std::vector<Material>& materials) {
+  switch (L.kind) {
+    case VirtualLightKind::kAreaVPL: {
+      float cos_l = -Dot(L.n, w);
+      if (cos_l <= 0 && !L.two_sided) return RGB(0.f);
+      return L.power * std::abs(cos_l);
+    }
+    case VirtualLightKind::kSurfaceVPL: {
+      // Re-emission through the VPL's BSDF: light arrived from wi, leaves towards -w.
+      Frame lf(L.n);
+      Vec3 out_local = lf.ToLocal(-w);
+      if (Dot(L.ng, -w) * out_local.z <= 0) return RGB(0.f);
+      RGB fl = EvalBSDF(materials[L.material], lf.ToLocal(L.wi), out_local,
+                        TransportMode::kImportance);
+      return L.power * fl * std::abs(out_local.z);
+    }
+    case VirtualLightKind::kPoint: {
+      float falloff = 1.f;
+      if (L.spot) {
+        float cos_t = -Dot(w, L.n);
+        if (cos_t <= L.cos_falloff_end) return RGB(0.f);
+        if (cos_t < L.cos_falloff_start) {
+          float t = (cos_t - L.cos_falloff_end) / (L.cos_falloff_start - L.cos_falloff_end);
+          falloff = t * t * (3 - 2 * t);
+        }
+      }
+      return L.power * falloff;
+    }
+    case VirtualLightKind::kDirectional:
+      return L.power;
+    case VirtualLightKind::kMediumVPL:
+      // Light travelling along -wi scatters towards -w: cosθ = Dot(-wi, -w).
+      return L.power * HenyeyGreenstein(Dot(L.wi, w), L.g);
+  }
+  return RGB(0.f);
+}
 
 LightingMatrix::LightingMatrix(const Scene& scene, const ReceiverSet& receivers,
                                const LightSet& lights, const MatrixOptions& options)
     : scene_(scene), receivers_(receivers), lights_(lights) {
   clamp_distance_ = options.clamp * std::max(scene.bounds().Radius(), 1e-6f);
   clamp_distance2_ = clamp_distance_ * clamp_distance_;
+  segment_samples_ = options.segment_samples;
+  max_depth_ = scene.hints().max_depth;
   const int max_depth = scene.hints().max_depth;
   rows_.resize(receivers.points.size());
   for (size_t i = 0; i < rows_.size(); ++i) {
@@ -40,6 +84,8 @@ LightingMatrix::LightingMatrix(const Scene& scene, const ReceiverSet& receivers,
     // pbrt's maxdepth bounds the scattering events on the whole path: camera side (depth) +
     // light side (VPL depth) must not exceed it.
     r.light_depth_budget = uint8_t(std::clamp(max_depth - int(sp.depth), 0, 255));
+    r.medium_out = sp.medium_out;
+    r.medium_in = sp.medium_in;
   }
   light_frames_.resize(lights.size());
   for (size_t j = 0; j < lights.size(); ++j) {
@@ -58,12 +104,22 @@ void LightingMatrix::EvaluateBatched(size_t n, EntryFn entry, SinkFn sink,
   std::array<RGB, kBatch> values;
   std::array<float, kBatch> unclamped;
   std::array<uint32_t, kBatch> slot;  // which entry of the batch a ray belongs to
+  std::array<Vec3, kBatch> origins, dirs;  // shadow segments (for transmittance in media)
+  std::array<float, kBatch> lengths;
+  std::array<int16_t, kBatch> start_medium;
+  std::array<uint64_t, kBatch> entry_key;
+  const bool media = scene_.has_media();
   for (size_t begin = 0; begin < n; begin += kBatch) {
     size_t count = std::min(kBatch, n - begin);
     size_t nrays = 0;
     for (size_t k = 0; k < count; ++k) {
       uint32_t ri, lj;
       entry(begin + k, &ri, &lj);
+      if (ri >= rows_.size()) {
+        // Eye-segment row: integrated by its own batched samples.
+        sink(begin + k, SegmentElement(ri - uint32_t(rows_.size()), lj, counters));
+        continue;
+      }
       const RowData& row = rows_[ri];
       const VirtualLight& L = lights_.lights[lj];
       sink(begin + k, RGB(0.f));  // default: zero unless visible below
@@ -85,40 +141,17 @@ void LightingMatrix::EvaluateBatched(size_t n, EntryFn entry, SinkFn sink,
       RGB f = EvalBSDF(materials[row.material], row.wo_local, wi_local, TransportMode::kRadiance);
       if (f.IsBlack()) continue;
       RGB intensity;
-      switch (L.kind) {
-        case VirtualLightKind::kAreaVPL: {
-          float cos_l = -Dot(L.n, w);
-          if (cos_l <= 0 && !L.two_sided) continue;
-          intensity = L.power * std::abs(cos_l);
-          break;
-        }
-        case VirtualLightKind::kSurfaceVPL: {
-          // Re-emission through the VPL's BSDF: light arrived from wi, leaves towards -w.
-          const SurfaceLightFrame& lf = light_frames_[lj];
-          Vec3 out_local = lf.frame.ToLocal(-w);
-          if (Dot(L.ng, -w) * out_local.z <= 0) continue;
-          RGB fl = EvalBSDF(materials[L.material], lf.wi_local, out_local,
-                            TransportMode::kImportance);
-          intensity = L.power * fl * std::abs(out_local.z);
-          break;
-        }
-        case VirtualLightKind::kPoint: {
-          float falloff = 1.f;
-          if (L.spot) {
-            float cos_t = -Dot(w, L.n);
-            if (cos_t <= L.cos_falloff_end) continue;
-            if (cos_t < L.cos_falloff_start) {
-              float t = (cos_t - L.cos_falloff_end) / (L.cos_falloff_start - L.cos_falloff_end);
-              falloff = t * t * (3 - 2 * t);
-            }
-          }
-          intensity = L.power * falloff;
-          break;
-        }
-        case VirtualLightKind::kDirectional:
-          intensity = L.power;
-          break;
+      if (L.kind == VirtualLightKind::kSurfaceVPL) {
+        // As LightIntensityTowards, with the light's frame computed once per light.
+        const SurfaceLightFrame& lf = light_frames_[lj];
+        Vec3 out_local = lf.frame.ToLocal(-w);
+        if (Dot(L.ng, -w) * out_local.z <= 0) continue;
+        RGB fl = EvalBSDF(materials[L.material], lf.wi_local, out_local, TransportMode::kImportance);
+        intensity = L.power * fl * std::abs(out_local.z);
+      } else {
+        intensity = LightIntensityTowards(L, w, materials);
       }
+      if (intensity.IsBlack()) continue;
       float geometry = 1.f, scale_unclamped = 1.f;
       if (!L.IsDirectional()) {
         if (L.IsClamped() && dist2 < clamp_distance2_) {
@@ -139,7 +172,9 @@ void LightingMatrix::EvaluateBatched(size_t n, EntryFn entry, SinkFn sink,
         dir = w;
         tfar = kInfinity;
       } else {
-        Vec3 target = L.kind == VirtualLightKind::kPoint ? L.p : OffsetRayOrigin(L.p, L.ng, -w);
+        Vec3 target = (L.kind == VirtualLightKind::kPoint || L.kind == VirtualLightKind::kMediumVPL)
+                          ? L.p
+                          : OffsetRayOrigin(L.p, L.ng, -w);
         dir = target - o;
         tfar = 1.f - 1e-4f;
       }
@@ -152,6 +187,16 @@ void LightingMatrix::EvaluateBatched(size_t n, EntryFn entry, SinkFn sink,
       ray.mask = 0xFFFFFFFFu;
       ray.id = uint32_t(nrays);
       ray.flags = 0;
+      if (media) {
+        // Generalized visibility (Huo 2016, Sec. 3): visibility × transmittance of the shadow
+        // segment, walked from the receiver's side (its medium is known) towards the light.
+        origins[nrays] = o;
+        float len = L.IsDirectional() ? kInfinity : Length(dir);
+        dirs[nrays] = L.IsDirectional() ? dir : dir / len;
+        lengths[nrays] = L.IsDirectional() ? kInfinity : len * tfar;
+        start_medium[nrays] = Dot(w, row.ng) > 0 ? row.medium_out : row.medium_in;
+        entry_key[nrays] = (uint64_t(ri) << 32) | lj;
+      }
       values[nrays] = value;
       unclamped[nrays] = scale_unclamped;
       slot[nrays] = uint32_t(k);
@@ -164,6 +209,13 @@ void LightingMatrix::EvaluateBatched(size_t n, EntryFn entry, SinkFn sink,
     counters->shadow_rays += nrays;
     for (size_t r = 0; r < nrays; ++r) {
       if (!(rays[r].tfar >= 0.f)) continue;  // occluded: Embree sets tfar = -inf
+      if (media) {
+        // Seeded by the element, so an element has the same value whichever method asks.
+        Rng rng(HashSeed({uint64_t(RngStream::kMedium), entry_key[r]}));
+        values[r] *= scene_.TransmittanceAlong(origins[r], dirs[r], lengths[r], start_medium[r], rng);
+        ++counters->transmittance_evals;
+        if (values[r].IsBlack()) continue;
+      }
       sink(begin + slot[r], values[r]);
       if (unclamped[r] != 1.f) {
         float lum = values[r].Luminance();

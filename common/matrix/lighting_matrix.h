@@ -18,6 +18,8 @@ struct MatrixOptions {
   // Geometry-term clamp for virtual lights: 1/d² is replaced by 1/max(d², d_min²) with
   // d_min = clamp · (scene bounding-sphere radius). 0 disables it. Real point lights are exact.
   float clamp = 0.01f;
+  // Samples per element of an eye-segment row (equi-angular sampling along the segment).
+  int segment_samples = 4;
 };
 
 // Per-caller counters (no atomics in the hot path; callers sum them).
@@ -26,20 +28,29 @@ struct MatrixCounters {
   uint64_t shadow_rays = 0;  // occlusion rays cast (elements with a non-zero unshadowed value)
   double clamp_lost = 0;     // luminance removed by the clamp on visible elements
   double clamp_kept = 0;     // luminance of visible clamped-light elements after the clamp
+  uint64_t transmittance_evals = 0;  // visible connections attenuated through media (walks)
   void Add(const MatrixCounters& o) {
     elements += o.elements;
+    transmittance_evals += o.transmittance_evals;
     shadow_rays += o.shadow_rays;
     clamp_lost += o.clamp_lost;
     clamp_kept += o.clamp_kept;
   }
 };
 
+// Intensity light L sends towards a point that sees it in direction w (unit, point → light);
+// zero where L does not emit that way (shared by surface and eye-segment rows).
+RGB LightIntensityTowards(const VirtualLight& L, Vec3 w, const std::vector<Material>& materials);
+
 class LightingMatrix {
  public:
   LightingMatrix(const Scene& scene, const ReceiverSet& receivers, const LightSet& lights,
                  const MatrixOptions& options);
 
-  size_t rows() const { return rows_.size(); }
+  // Rows: the shading points (receivers.points, row i = point i), then the eye segments
+  // (row points.size() + s = receivers.segments[s]).
+  size_t rows() const { return rows_.size() + receivers_.segments.size(); }
+  size_t point_rows() const { return rows_.size(); }
   size_t cols() const { return lights_.size(); }
   const LightSet& lights() const { return lights_; }
   const ReceiverSet& receivers() const { return receivers_; }
@@ -73,7 +84,12 @@ class LightingMatrix {
     RGB throughput;
     uint32_t material;
     uint8_t light_depth_budget;  // max light-path depth this receiver may connect to
+    int16_t medium_out, medium_in;  // media on the ng / -ng side (ShadingPoint)
   };
+  // One element of an eye-segment row (Huo 2016, Eq. 4: light → eye segment): the integral of
+  // in-scattered light along the segment, by equi-angular sampling (Kulla & Fajardo 2012) for
+  // point-like lights and transmittance-proportional sampling for directional ones.
+  RGB SegmentElement(uint32_t segment, uint32_t col, MatrixCounters* counters) const;
   // Evaluates up to kBatch entries (unshadowed value + shadow ray), then visibility.
   template <typename EntryFn, typename SinkFn>
   void EvaluateBatched(size_t n, EntryFn entry, SinkFn sink, MatrixCounters* counters) const;
@@ -91,6 +107,8 @@ class LightingMatrix {
   std::vector<SurfaceLightFrame> light_frames_;
   float clamp_distance_ = 0, clamp_distance2_ = 0;
   mutable std::vector<RTCRay>* recorded_rays_ = nullptr;
+  int segment_samples_ = 4;
+  int max_depth_ = 5;
 };
 
 }  // namespace lightfarm

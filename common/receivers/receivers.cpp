@@ -20,17 +20,68 @@ struct PathEnd {
   ShadingPoint point;
   int specular_bounces = 0;
   bool escaped = false;
+  size_t transmittance_evals = 0;
+  std::vector<EyeSegment> segments;
 };
+
+// Splits the camera ray piece [0, tmax] in `medium` into up to h + 1 eye segments at points
+// placed by delta tracking (their density follows σ_t). beta is the camera weight up to ray.o;
+// each segment's throughput adds the transmittance up to its start.
+void AddEyeSegments(const Medium& med, int medium, const Ray& ray, float tmax, RGB beta, int h,
+                    uint8_t depth, Rng& rng, PathEnd* end) {
+  // An unbounded piece (a ray leaving into an endless medium) is cut where any light left
+  // along it is negligible or, for an empty medium, where nothing is.
+  if (!std::isfinite(tmax)) {
+    float st = med.sigma_t().Max() * med.MaxDensity();
+    if (!(st > 0)) return;
+    tmax = 30.f / st;
+  }
+  float t = 0;
+  for (int k = 0; k <= h && t < tmax; ++k) {
+    float next = tmax;
+    if (k < h) {
+      FreePathSample fp = med.SampleFreePath({ray.o + ray.d * t, ray.d, tmax - t}, rng);
+      if (fp.scattered) next = std::min(tmax, t + std::max(fp.t, 0.f));
+    }
+    if (next > t) {
+      EyeSegment s;
+      s.o = ray.o + ray.d * t;
+      s.d = ray.d;
+      s.length = next - t;
+      s.throughput = beta;
+      s.medium = int16_t(medium);
+      s.depth = depth;
+      end->segments.push_back(s);
+      beta *= med.Transmittance({s.o, s.d, s.length}, rng);
+      ++end->transmittance_evals;
+      if (beta.IsBlack()) return;
+    }
+    t = next;
+  }
+}
 
 // Follows a camera ray through specular (delta) interactions to its first non-specular vertex,
 // collecting the emission seen along the way.
-PathEnd TraceCameraPath(const Scene& scene, Ray ray, int max_depth, Rng& rng) {
+PathEnd TraceCameraPath(const Scene& scene, Ray ray, int max_depth, int segments_per_ray,
+                        Rng& rng) {
   PathEnd end;
   RGB beta(1.f);
   int depth = 0, passthrough = 0;
+  int medium = scene.camera_medium();
   for (;;) {
     SurfaceHit hit;
-    if (!scene.Intersect(ray, &hit)) {
+    bool found = scene.Intersect(ray, &hit);
+    // Attenuation of the surface (and emission) seen at the end of this ray segment: an
+    // unbiased transmittance estimate (closed form in homogeneous media).
+    if (medium >= 0) {
+      if (segments_per_ray >= 0 && depth < max_depth)
+        AddEyeSegments(scene.media()[medium], medium, ray, found ? hit.t : kInfinity, beta,
+                       segments_per_ray, uint8_t(std::min(depth + 1, 255)), rng, &end);
+      beta *= scene.media()[medium].Transmittance({ray.o, ray.d, found ? hit.t : kInfinity}, rng);
+      ++end.transmittance_evals;
+      if (beta.IsBlack()) return end;
+    }
+    if (!found) {
       end.emitted += beta * scene.EnvironmentRadiance(ray.d);
       end.escaped = true;
       return end;
@@ -40,8 +91,9 @@ PathEnd TraceCameraPath(const Scene& scene, Ray ray, int max_depth, Rng& rng) {
     const Shape& shape = scene.shapes()[hit.shape];
     const Material& m = scene.materials()[shape.material];
     uint32_t flags = MaterialFlags(m);
-    if (flags == 0) {  // interface: not a surface
+    if (flags == 0) {  // interface: not a surface, only the medium changes
       if (++passthrough > 64) return end;
+      medium = scene.MediumAfter(hit, ray.d, medium);
       ray.o = OffsetRayOrigin(hit.p, hit.ng, ray.d);
       continue;
     }
@@ -64,6 +116,8 @@ PathEnd TraceCameraPath(const Scene& scene, Ray ray, int max_depth, Rng& rng) {
       end.point.throughput = beta;
       end.point.material = uint32_t(shape.material);
       end.point.depth = uint8_t(std::min(depth, 255));
+      end.point.medium_out = int16_t(shape.medium_transition ? shape.outside_medium : medium);
+      end.point.medium_in = int16_t(shape.medium_transition ? shape.inside_medium : medium);
       return end;
     }
     if (depth >= max_depth) return end;
@@ -75,6 +129,7 @@ PathEnd TraceCameraPath(const Scene& scene, Ray ray, int max_depth, Rng& rng) {
     beta *= bs->f * (std::abs(bs->wi.z) / bs->pdf);
     if (beta.IsBlack() || !beta.IsFinite()) return end;
     ++end.specular_bounces;
+    medium = scene.MediumAfter(hit, wi, medium);
     ray = {OffsetRayOrigin(hit.p, hit.ng, wi), wi, kInfinity};
   }
 }
@@ -92,6 +147,7 @@ ReceiverSet GenerateReceivers(const Scene& scene, const FilterSampler& filter,
   set.samples.resize(npix * spp);
   std::vector<ShadingPoint> points(npix * spp);
   std::vector<uint8_t> has_point(npix * spp, 0);
+  std::vector<std::vector<EyeSegment>> segments(npix * spp);
   std::vector<ReceiverStats> row_stats(set.height);
 
   tbb::parallel_for(0, set.height, [&](int y) {
@@ -116,10 +172,13 @@ ReceiverSet GenerateReceivers(const Scene& scene, const FilterSampler& filter,
           ++st.nonfinite_rays;
           continue;
         }
-        PathEnd end = TraceCameraPath(scene, ray, opt.max_depth, rng);
+        PathEnd end = TraceCameraPath(scene, ray, opt.max_depth, opt.segments_per_ray, rng);
+        for (EyeSegment& seg : end.segments) seg.sample = uint32_t(index);
+        segments[index] = std::move(end.segments);
         cs.emitted = end.emitted;
         st.specular_bounces += end.specular_bounces;
         st.escaped += end.escaped;
+        st.transmittance_evals += end.transmittance_evals;
         if (end.has_point) {
           end.point.sample = uint32_t(index);
           points[index] = end.point;
@@ -135,11 +194,18 @@ ReceiverSet GenerateReceivers(const Scene& scene, const FilterSampler& filter,
     set.samples[i].point = int32_t(set.points.size());
     set.points.push_back(points[i]);
   }
+  for (size_t i = 0; i < segments.size(); ++i) {
+    if (segments[i].empty()) continue;
+    set.samples[i].first_segment = int32_t(set.segments.size());
+    set.samples[i].segment_count = uint32_t(segments[i].size());
+    set.segments.insert(set.segments.end(), segments[i].begin(), segments[i].end());
+  }
   for (const ReceiverStats& st : row_stats) {
     set.stats.camera_rays += st.camera_rays;
     set.stats.specular_bounces += st.specular_bounces;
     set.stats.escaped += st.escaped;
     set.stats.nonfinite_rays += st.nonfinite_rays;
+    set.stats.transmittance_evals += st.transmittance_evals;
   }
   return set;
 }

@@ -19,6 +19,21 @@ struct ShadingPoint {
   uint32_t material = 0;
   uint32_t sample = 0;  // index of the camera sample it belongs to
   uint8_t depth = 1;    // scattering events on the camera path, this vertex included
+  // Media on the two sides of the surface (indices into Scene::media(), -1 vacuum): medium_out
+  // on the side ng points to. Shadow connections towards w start in Dot(w, ng) > 0 ? out : in.
+  int16_t medium_out = -1, medium_in = -1;
+};
+
+// A receiver along a camera ray inside a medium (Huo 2016, Sec. 3: eye rays through media
+// become segments): in-scattered radiance along o + t·d, t ∈ [0, length], reaching the camera
+// with `throughput` (camera weight × transmittance from the camera up to o).
+struct EyeSegment {
+  Vec3 o, d;            // start, unit direction of travel of the camera ray (away from camera)
+  float length = 0;
+  RGB throughput;
+  int16_t medium = -1;  // the medium the segment lies in
+  uint8_t depth = 1;    // scattering events on the camera path, the in-scattering included
+  uint32_t sample = 0;  // index of the camera sample it belongs to
 };
 
 struct CameraSample {
@@ -26,16 +41,20 @@ struct CameraSample {
   float weight = 0;       // filter weight f(p)/pdf(p)
   RGB emitted;            // emission seen directly along the camera path (emitters, environment)
   int32_t point = -1;     // index of its shading point, -1 if the path ended without one
+  int32_t first_segment = -1;  // its eye segments: [first_segment, first_segment + segment_count)
+  uint32_t segment_count = 0;
 };
 
 struct ReceiverStats {
   size_t camera_rays = 0, specular_bounces = 0, escaped = 0, nonfinite_rays = 0;
+  size_t transmittance_evals = 0;  // camera-ray segments attenuated through a medium
 };
 
 struct ReceiverSet {
   int width = 0, height = 0, spp = 1;
   std::vector<CameraSample> samples;  // pixel-major: sample s of pixel p is p * spp + s
   std::vector<ShadingPoint> points;   // in sample order
+  std::vector<EyeSegment> segments;   // in sample order (empty unless segments_per_ray >= 0)
   ReceiverStats stats;
 };
 
@@ -43,6 +62,9 @@ struct ReceiverOptions {
   int spp = 1;
   uint64_t seed = 0;
   int max_depth = 5;
+  // Eye rays through media become h + 1 segments split at h points placed by delta tracking
+  // (Huo 2016: h = 16). -1: no segments (the camera ray is only attenuated).
+  int segments_per_ray = -1;
 };
 
 // Deterministic: every pixel draws from its own hashed generator and scrambled Sobol points.

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <numeric>
 
 #include "common/image/image_io.h"
@@ -177,12 +178,13 @@ class SceneBuilder {
 
   void Build() {
     ReadHints();
-    if (!desc_.media.empty()) {
-      const MediumDesc& m = desc_.media.begin()->second;
-      throw SceneError(m.loc, "participating media not supported yet (MakeNamedMedium \"" +
-                                  m.name + "\" of type \"" + m.type + "\")");
+    for (const auto& [name, md] : desc_.media) {
+      medium_index_[name] = int(s_.media_.size());
+      s_.media_.push_back(CreateMedium(md, desc_));
     }
     s_.camera_ = Camera::Create(desc_.camera, s_.hints_.width, s_.hints_.height);
+    s_.camera_medium_ = MediumIndex(desc_.camera.medium, desc_.camera.loc);
+    s_.has_media_ = s_.camera_medium_ >= 0;
     for (const MaterialDesc& md : desc_.materials) s_.materials_.push_back(CreateMaterial(md));
     for (const ShapeDesc& sd : desc_.shapes) AddShape(sd, sd.world_from_object);
     for (const InstanceUse& use : desc_.instance_uses) {
@@ -259,6 +261,14 @@ class SceneBuilder {
     if (!f.type.empty()) f.params.ReportUnused("PixelFilter \"" + f.type + "\"");
   }
 
+  // Index of a named medium, -1 for "" (vacuum).
+  int MediumIndex(const std::string& name, const FileLoc& loc) {
+    if (name.empty()) return -1;
+    auto it = medium_index_.find(name);
+    if (it == medium_index_.end()) throw SceneError(loc, "unknown medium \"" + name + "\"");
+    return it->second;
+  }
+
   int MaterialIndex(const ShapeDesc& sd) {
     if (sd.material >= 0) return sd.material;
     // No material set: pbrt-v4's default is diffuse with reflectance 0.5.
@@ -274,11 +284,13 @@ class SceneBuilder {
   }
 
   void AddShape(const ShapeDesc& sd, const Transform& world_from_object) {
-    if (!sd.inside_medium.empty() || !sd.outside_medium.empty())
-      throw SceneError(sd.loc, "participating media not supported yet (MediumInterface on Shape)");
     ShapeDesc d = sd;
     d.world_from_object = world_from_object;
     Shape shape;
+    shape.inside_medium = MediumIndex(sd.inside_medium, sd.loc);
+    shape.outside_medium = MediumIndex(sd.outside_medium, sd.loc);
+    shape.medium_transition = shape.inside_medium != shape.outside_medium;
+    if (shape.inside_medium >= 0 || shape.outside_medium >= 0) s_.has_media_ = true;
     shape.name = "Shape \"" + sd.type + "\" (" + sd.loc.ToString() + ")";
     shape.material = MaterialIndex(sd);
     shape.flip_normals = sd.reverse_orientation != world_from_object.SwapsHandedness();
@@ -392,8 +404,8 @@ class SceneBuilder {
   }
 
   void AddLight(const LightDesc& ld) {
-    if (!ld.medium.empty())
-      throw SceneError(ld.loc, "participating media not supported yet (light inside a medium)");
+    const int medium = MediumIndex(ld.medium, ld.loc);
+    if (medium >= 0) s_.has_media_ = true;
     const ParamSet& ps = ld.params;
     float scale = ps.GetOneFloat("scale", 1.f);
     const Transform& m = ld.world_from_light;
@@ -418,11 +430,13 @@ class SceneBuilder {
         scale *= power / (4 * kPi * I.Luminance());
       }
       e.intensity = I * scale;
+      e.medium = medium;
       if (!IsFinite(e.position) || !IsFinite(e.axis))
         throw SceneError(ld.loc, "LightSource \"" + ld.type + "\": position/direction not finite");
       s_.point_emitters_.push_back(e);
     } else if (ld.type == "distant") {
       DistantEmitter e;
+      e.medium = medium;
       RGB L = ps.GetOneRGB("L", SpectrumType::kIlluminant).value_or(RGB(1.f));
       Vec3 from = ps.GetOnePoint3("from").value_or(Vec3{0, 0, 0});
       Vec3 to = ps.GetOnePoint3("to").value_or(Vec3{0, 0, 1});
@@ -435,6 +449,7 @@ class SceneBuilder {
       s_.distant_emitters_.push_back(e);
     } else if (ld.type == "infinite") {
       InfiniteEmitter e;
+      e.medium = medium;
       e.world_from_light = m;
       auto inv = m.Inverse();
       if (!inv) throw SceneError(ld.loc, "LightSource \"infinite\": transform is singular");
@@ -518,6 +533,9 @@ class SceneBuilder {
             sh.indices.size() / 3));
         std::copy(sh.indices.begin(), sh.indices.end(), ix);
       }
+      // Interface surfaces only change the medium: a separate mask keeps them out of shadow rays.
+      bool interface = s_.materials_[sh.material].type == MaterialType::kInterface;
+      rtcSetGeometryMask(geom, interface ? kMaskInterface : kMaskOpaque);
       rtcCommitGeometry(geom);
       rtcAttachGeometryByID(s_.rtc_scene_, geom, i);
       rtcReleaseGeometry(geom);
@@ -531,6 +549,7 @@ class SceneBuilder {
   const SceneBuildOptions& opt_;
   Scene& s_;
   int default_material_ = -1;
+  std::map<std::string, int> medium_index_;
 };
 
 std::unique_ptr<Scene> Scene::Build(const SceneDescription& desc, const SceneBuildOptions& opt) {
@@ -544,7 +563,7 @@ Scene::~Scene() {
   if (device_) rtcReleaseDevice(device_);
 }
 
-bool Scene::Intersect(const Ray& ray, SurfaceHit* hit) const {
+bool Scene::Intersect(const Ray& ray, SurfaceHit* hit, uint32_t mask) const {
   RTCIntersectContext ctx;
   rtcInitIntersectContext(&ctx);
   RTCRayHit rh;
@@ -553,7 +572,7 @@ bool Scene::Intersect(const Ray& ray, SurfaceHit* hit) const {
   rh.ray.tnear = 0.f;
   rh.ray.tfar = ray.tmax;
   rh.ray.time = 0.f;
-  rh.ray.mask = 0xFFFFFFFFu;  // Debian's Embree has ray masks on (DESIGN.md pitfalls)
+  rh.ray.mask = mask;  // Debian's Embree has ray masks on (DESIGN.md pitfalls)
   rh.ray.id = 0;
   rh.ray.flags = 0;
   rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
@@ -607,7 +626,59 @@ void Scene::Occluded(RTCRay* rays, size_t count) const {
   rtcInitIntersectContext(&ctx);
   // Shadow rays towards many lights are incoherent; COHERENT was ~3x slower (DESIGN.md).
   ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
+  for (size_t i = 0; i < count; ++i) rays[i].mask = kMaskOpaque;
   rtcOccluded1M(rtc_scene_, &ctx, rays, static_cast<unsigned int>(count), sizeof(RTCRay));
+}
+
+int Scene::MediumAfter(const SurfaceHit& hit, Vec3 w, int current) const {
+  const Shape& sh = shapes_[hit.shape];
+  if (!sh.medium_transition) return current;
+  return Dot(w, hit.ng) > 0 ? sh.outside_medium : sh.inside_medium;
+}
+
+void Scene::MediumSegments(Vec3 o, Vec3 d, float tmax, int medium,
+                           std::vector<MediumSegment>* out) const {
+  if (!IsFinite(o) || !IsFinite(d) || !(tmax > 0)) return;
+  float t = 0;
+  Vec3 origin = o;
+  // Each crossing restarts past the interface (offset along its normal); a bounded count
+  // guards against a ray trapped by coplanar or degenerate interface geometry.
+  for (int crossings = 0; crossings < 64; ++crossings) {
+    float remaining = tmax - t;
+    if (!(remaining > 0) || !IsFinite(origin)) return;
+    SurfaceHit hit;
+    if (!Intersect({origin, d, remaining}, &hit, kMaskInterface)) {
+      out->push_back({t, tmax, medium});
+      return;
+    }
+    float t_hit = std::min(t + hit.t, tmax);
+    out->push_back({t, t_hit, medium});
+    medium = MediumAfter(hit, d, medium);
+    origin = OffsetRayOrigin(hit.p, hit.ng, d);
+    t = t_hit;
+  }
+  if (t < tmax) out->push_back({t, tmax, medium});
+}
+
+RGB Scene::Transmittance(Vec3 p0, Vec3 p1, int medium, Rng& rng) const {
+  Vec3 d = p1 - p0;
+  float len = Length(d);
+  if (!(len > 0) || !std::isfinite(len)) return RGB(len == 0.f ? 1.f : 0.f);
+  return TransmittanceAlong(p0, d / len, len, medium, rng);
+}
+
+RGB Scene::TransmittanceAlong(Vec3 o, Vec3 d, float tmax, int medium, Rng& rng) const {
+  if (media_.empty()) return RGB(1.f);
+  if (!IsFinite(o) || !IsFinite(d) || std::isnan(tmax)) return RGB(0.f);
+  std::vector<MediumSegment> segments;
+  MediumSegments(o, d, tmax, medium, &segments);
+  RGB T(1.f);
+  for (const MediumSegment& s : segments) {
+    if (s.medium < 0 || !(s.t1 > s.t0)) continue;
+    T *= media_[s.medium].Transmittance({o + d * s.t0, d, s.t1 - s.t0}, rng);
+    if (T.IsBlack()) break;
+  }
+  return T;
 }
 
 RGB Scene::EmittedRadiance(const SurfaceHit& hit, Vec3 w) const {

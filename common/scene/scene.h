@@ -12,8 +12,10 @@
 
 #include "common/scene/bsdf.h"
 #include "common/scene/camera.h"
+#include "common/scene/medium.h"
 #include "common/scene/scene_description.h"
 #include "common/util/math.h"
+#include "common/util/rng.h"
 
 namespace lightfarm {
 
@@ -44,6 +46,10 @@ struct Shape {
   // Sphere data (world space).
   Vec3 center;
   float radius = 0;
+  // MediumInterface: indices into Scene::media(), -1 for vacuum. Only a shape whose two media
+  // differ changes the medium a ray is in (pbrt-v4: other shapes keep the ray's medium).
+  int inside_medium = -1, outside_medium = -1;
+  bool medium_transition = false;
 
   size_t PrimitiveCount() const { return kind == ShapeKind::kSphere ? 1 : indices.size() / 3; }
 };
@@ -64,16 +70,19 @@ struct PointEmitter {
   Vec3 position;
   RGB intensity;                // I · scale
   bool spot = false;
+  int medium = -1;              // the medium the light sits in (index into Scene::media())
   Vec3 axis{0, 0, 1};           // spot direction (world)
   float cos_falloff_start = 1, cos_falloff_end = -1;  // spot cone (smoothstep between)
   // pbrt-v4 spot falloff: smoothstep(cosFalloffEnd, cosFalloffStart, cos θ).
   float Falloff(Vec3 w_from_light) const;
 };
 struct DistantEmitter {
+  int medium = -1;  // the medium its particles start in (the light's MediumInterface)
   Vec3 direction;  // direction the light travels (from "from" to "to")
   RGB L;           // irradiance scale: radiance arriving along -direction integrated = L·scale
 };
 struct InfiniteEmitter {
+  int medium = -1;  // the medium its particles start in (the light's MediumInterface)
   RGB L{0.f};      // uniform radiance (when no image)
   Transform world_from_light, light_from_world;
   int width = 0, height = 0;  // equal-area octahedral image (pbrt-v4), empty for uniform
@@ -105,6 +114,17 @@ struct SceneBuildOptions {
   std::string filter;
 };
 
+// Embree geometry masks (Debian's Embree is built with ray masks on): opaque surfaces and
+// interface (null) surfaces that only change the medium. Shadow rays test kMaskOpaque only, so
+// media boundaries never occlude; medium walks test kMaskInterface only.
+inline constexpr uint32_t kMaskOpaque = 1u, kMaskInterface = 2u, kMaskAll = 0xFFFFFFFFu;
+
+// A piece of a segment p0→p1 lying in one medium (parameter t ∈ [0, 1] along p1 - p0).
+struct MediumSegment {
+  float t0 = 0, t1 = 0;
+  int medium = -1;
+};
+
 class Scene {
  public:
   // Loads and builds; every problem is a SceneError naming file:line.
@@ -114,9 +134,28 @@ class Scene {
   Scene& operator=(const Scene&) = delete;
 
   // Closest hit along ray within (0, ray.tmax). The ray must be finite (validated by caller).
-  bool Intersect(const Ray& ray, SurfaceHit* hit) const;
-  // Occlusion for a batch of prepared Embree rays (tfar set to -inf where occluded).
+  // mask selects the geometry (kMaskAll: every surface, interfaces included).
+  bool Intersect(const Ray& ray, SurfaceHit* hit, uint32_t mask = kMaskAll) const;
+  // Occlusion for a batch of prepared Embree rays (tfar set to -inf where occluded). Every ray's
+  // mask is set to kMaskOpaque here: interface surfaces never occlude.
   void Occluded(RTCRay* rays, size_t count) const;
+
+  // --- Participating media ---
+  const std::vector<Medium>& media() const { return media_; }
+  int camera_medium() const { return camera_medium_; }
+  // The medium a ray leaving (or passing) surface `hit` along w is in, when it arrived in
+  // `current`: a medium-transition shape decides by side (Dot(w, ng) > 0: outside), any other
+  // surface keeps `current`.
+  int MediumAfter(const SurfaceHit& hit, Vec3 w, int current) const;
+  // The media along o + t·d, t ∈ [0, tmax] (d unit), starting in `medium` and crossing only
+  // interface surfaces (opaque ones are the caller's visibility test). Appends pieces in order
+  // (t in world units here); vacuum pieces have medium -1.
+  void MediumSegments(Vec3 o, Vec3 d, float tmax, int medium, std::vector<MediumSegment>* out) const;
+  // Transmittance of p0→p1 (or of o + t·d up to tmax) starting in `medium`: product over the
+  // medium pieces (closed form in homogeneous media, ratio tracking otherwise). Validates the
+  // rays it traces; a non-finite query returns 0.
+  RGB Transmittance(Vec3 p0, Vec3 p1, int medium, Rng& rng) const;
+  RGB TransmittanceAlong(Vec3 o, Vec3 d, float tmax, int medium, Rng& rng) const;
 
   const std::vector<Shape>& shapes() const { return shapes_; }
   const std::vector<Material>& materials() const { return materials_; }
@@ -127,6 +166,8 @@ class Scene {
   const Camera& camera() const { return camera_; }
   const RenderHints& hints() const { return hints_; }
   const Bounds3& bounds() const { return bounds_; }
+  // True when the camera, a shape or a light uses a medium (a defined but unused medium is
+  // not reachable by any path).
   bool has_media() const { return has_media_; }
 
   // Emitted radiance of an area emitter leaving the surface at hit towards direction w.
@@ -153,6 +194,8 @@ class Scene {
   RenderHints hints_;
   Bounds3 bounds_;
   bool has_media_ = false;
+  std::vector<Medium> media_;
+  int camera_medium_ = -1;
 
   friend class SceneBuilder;
 };
