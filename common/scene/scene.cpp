@@ -489,6 +489,8 @@ class SceneBuilder {
         if (avg > 0) scale *= illum / (kPi * avg);
       }
       e.scale = RGB(scale);
+      if (!(e.L * e.scale).IsFinite() || !(e.AverageRadiance() * e.scale).IsFinite())
+        throw SceneError(ld.loc, "LightSource \"infinite\": radiance is not finite (L or scale too large)");
       s_.infinite_emitters_.push_back(std::move(e));
     } else {
       throw SceneError(ld.loc, "unsupported light \"" + ld.type +

@@ -93,6 +93,23 @@ TEST(DegenerateGeometry, OverflowingAreaOfAnEmitterIsAnError) {
                    {"scene.pbrt:8:", "Shape \"trianglemesh\""});
 }
 
+// Regression: an environment whose power overflows float made NaN light counts and a huge
+// allocation (std::bad_alloc, or the OOM killer) instead of an error.
+TEST(DegenerateGeometry, OverflowingEnvironmentPowerIsAnError) {
+  TempDir dir;
+  ExpectSceneError(dir,
+                   "LightSource \"infinite\" \"rgb L\" [1e38 1e38 1e38] \"float scale\" [1e30]\n" + kQuad,
+                   {"scene.pbrt:7:", "LightSource \"infinite\"", "not finite"});
+  // Finite radiance, but a scene so large that the environment's power (radiance × 4π × the
+  // scene's disk) overflows.
+  try {
+    Render(dir, "LightSource \"infinite\" \"rgb L\" [1e30 1e30 1e30]\nScale 1e8 1e8 1e8\n" + kQuad);
+    ADD_FAILURE() << "no error for an overflowing environment power";
+  } catch (const std::exception& e) {
+    EXPECT_NE(std::string(e.what()).find("overflows"), std::string::npos) << e.what();
+  }
+}
+
 TEST(DegenerateGeometry, ZeroLengthNormalsNeverMakeANanSample) {
   TempDir dir;
   // Zero normals (and normals that collapse under the transform) carry no direction.
