@@ -38,7 +38,12 @@ void WriteTextAtomically(const std::string& path, const std::string& text) {
     std::ofstream f(tmp);
     if (!f) throw std::runtime_error("cannot write " + path);
     f << text;
-    if (!f) throw std::runtime_error("cannot write " + path);
+    f.close();
+    if (!f) {
+      std::error_code ec;
+      std::filesystem::remove(tmp, ec);
+      throw std::runtime_error("cannot write " + path);
+    }
   }
   std::filesystem::rename(tmp, path);
 }
@@ -50,6 +55,10 @@ void RunRender(const RenderArgs& a) {
     throw OptionError("--out must name an .exr file, got \"" + a.out + "\"");
   std::filesystem::path out_path(a.out);
   if (out_path.has_parent_path()) std::filesystem::create_directories(out_path.parent_path());
+  if (const std::filesystem::path stats_path(a.stats); stats_path.has_parent_path()) {
+    std::error_code ec;  // an unwritable place fails below, with the file's name
+    std::filesystem::create_directories(stats_path.parent_path(), ec);
+  }
 
   std::unique_ptr<tbb::global_control> limit;
   if (a.threads > 0)
@@ -61,10 +70,18 @@ void RunRender(const RenderArgs& a) {
       bar.Update(st.stage_name(), st.tasks_done(), st.tasks_total());
   });
   bar.Finish();
-  WriteEXR(a.out, out.image);
-  std::string png = a.out.substr(0, a.out.size() - 4) + ".png";
-  WritePNG(png, out.image);
-  if (!a.stats.empty()) WriteTextAtomically(a.stats, out.stats.dump(2) + "\n");
+  // All outputs or none: a failure on a later file (an unwritable --stats) removes the earlier
+  // ones, so a failed run never leaves a result that looks complete.
+  const std::string png = a.out.substr(0, a.out.size() - 4) + ".png";
+  try {
+    WriteEXR(a.out, out.image);
+    WritePNG(png, out.image);
+    if (!a.stats.empty()) WriteTextAtomically(a.stats, out.stats.dump(2) + "\n");
+  } catch (...) {
+    std::error_code ec;
+    for (const std::string& written : {a.out, png}) std::filesystem::remove(written, ec);
+    throw;
+  }
   if (!a.quiet) {
     std::fprintf(stderr, "%s: %s, %zu lights, %.2fs -> %s\n", a.scene.c_str(),
                  out.stats["method"].get<std::string>().c_str(),

@@ -16,12 +16,15 @@ void AddRenderOptions(CLI::App* cmd, RenderOptionArgs& a) {
       ->check(CLI::IsMember({"box", "triangle", "gaussian", "mitchell", "sinc"}));
   cmd->add_option("--spp", a.spp, "Camera samples per pixel")->check(CLI::Range(1, 4096));
   cmd->add_option("--lights", a.lights, "Number of virtual lights")->check(CLI::Range(1LL, 100000000LL));
-  cmd->add_option("--seed", a.seed, "Random seed");
+  // Without the check CLI11 wraps a negative number into a huge unsigned seed.
+  cmd->add_option("--seed", a.seed, "Random seed")->check(CLI::NonNegativeNumber);
   cmd->add_option("--param", a.params, "Method/renderer parameter KEY=VALUE (repeatable)");
 }
 
 RenderSettings ToRenderSettings(const RenderOptionArgs& a) {
   RenderSettings s;
+  // The farm's protocol reads an empty method as its default: say so instead of rendering brute.
+  if (a.method.empty()) throw OptionError("--method needs a method name (e.g. brute)");
   s.method = a.method;
   if (!a.resolution.empty()) {
     std::smatch m;

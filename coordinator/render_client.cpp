@@ -122,7 +122,10 @@ v1::SceneManifest RenderClient::UploadScene(const std::string& scene_path, bool 
   // Every file the scene reads, relative to their deepest common directory.
   std::vector<fs::path> files;
   try {
-    for (const std::string& f : ParseSceneFile(scene_path).files) files.push_back(fs::weakly_canonical(f));
+    // A file the scene names but that does not exist (a missing PLY) is not uploaded: building
+    // the scene then fails with the directive's file:line, not with a hashing error.
+    for (const std::string& f : ParseSceneFile(scene_path).files)
+      if (fs::is_regular_file(f)) files.push_back(fs::weakly_canonical(f));
   } catch (const SceneError&) {
     if (strict) throw;
   }

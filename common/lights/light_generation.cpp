@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <stdexcept>
 
 #include "common/scene/phase.h"
 #include "common/util/rng.h"
@@ -266,6 +267,12 @@ LightSet GenerateLights(const Scene& scene, const LightGenerationOptions& opt) {
   for (const EmitterRef& e : emitters)
     if (e.kind == EmitterRef::kArea || e.kind == EmitterRef::kInfinite)
       sampled_power += double(e.power.Luminance());
+  // A power that overflows float (radiance × area, or an environment × the scene's extent) would
+  // turn the split below into NaN light counts (a huge allocation).
+  for (const EmitterRef& e : emitters)
+    if (!e.power.IsFinite())
+      throw std::runtime_error("emitted power of a light overflows float (its radiance times its "
+                               "area or the scene's extent is too large)");
   for (const EmitterRef& e : emitters) {
     if (e.kind != EmitterRef::kArea && e.kind != EmitterRef::kInfinite) continue;
     size_t n = std::max<size_t>(1, size_t(std::llround(double(direct_budget) * double(e.power.Luminance()) /

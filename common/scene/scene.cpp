@@ -54,6 +54,11 @@ void SetMesh(Shape* shape, const ShapeDesc& sd, std::vector<Vec3> p, std::vector
         throw SceneError(sd.loc, "Shape \"" + sd.type + "\": index " + std::to_string(idx[t + k]) +
                                      " out of range (" + std::to_string(p.size()) + " vertices)");
     Vec3 e = Cross(p[idx[t]] - p[idx[t + 2]], p[idx[t + 1]] - p[idx[t + 2]]);
+    // Finite vertices can still be too far apart for float: an infinite area (and NaN sampling
+    // densities and normals downstream).
+    if (!std::isfinite(LengthSquared(e)))
+      throw SceneError(sd.loc, "Shape \"" + sd.type + "\": triangle " + std::to_string(t / 3) +
+                                   " is too large for float (its area overflows)");
     if (!(LengthSquared(e) > 0.f)) {
       ++degenerate;  // zero-area: contributes nothing and has no normal; drop it
       continue;
@@ -317,7 +322,13 @@ class SceneBuilder {
       if (ps.Has("displacement"))
         throw SceneError(ps.Find("displacement")->loc, "plymesh displacement is not supported");
       ps.GetOneFloat("edgelength", 1.f);
-      PlyMesh mesh = ReadPly(file);
+      PlyMesh mesh;
+      try {
+        mesh = ReadPly(file);
+      } catch (const SceneError& e) {
+        // The PLY error names the mesh file; the user also needs the directive that loads it.
+        throw SceneError(sd.loc, "Shape \"plymesh\": " + std::string(e.what()));
+      }
       SetMesh(&shape, d, std::move(mesh.positions), std::move(mesh.normals), std::move(mesh.uvs),
               mesh.indices);
     } else if (sd.type == "sphere") {
@@ -333,6 +344,8 @@ class SceneBuilder {
         shape.center = world_from_object.ApplyPoint({0, 0, 0});
         shape.radius = radius * *uniform;
         if (!IsFinite(shape.center)) throw SceneError(sd.loc, "Shape \"sphere\": center not finite");
+        if (!std::isfinite(4.f * kPi * shape.radius * shape.radius))
+          throw SceneError(sd.loc, "Shape \"sphere\": radius too large for float (its area overflows)");
       } else {
         std::vector<Vec3> p, n;
         std::vector<Vec2> uv;
@@ -397,6 +410,11 @@ class SceneBuilder {
       if (k > 0) scale *= power / k;
     }
     e.L *= scale;
+    // Finite radiance over a finite but huge area can still overflow the power light
+    // generation distributes (NaN sampling weights).
+    if (!e.L.IsFinite() || !std::isfinite(e.area) || !e.Power().IsFinite())
+      throw SceneError(al.loc, "AreaLightSource on " + shape->name +
+                                   ": emitted power is not finite (radiance or area too large)");
     ps.ReportUnused("AreaLightSource \"diffuse\"");
     if (e.L.IsBlack() || e.area <= 0) return;  // emits nothing
     shape->area_emitter = int(s_.area_emitters_.size());
@@ -486,6 +504,8 @@ class SceneBuilder {
         if (avg > 0) scale *= illum / (kPi * avg);
       }
       e.scale = RGB(scale);
+      if (!(e.L * e.scale).IsFinite() || !(e.AverageRadiance() * e.scale).IsFinite())
+        throw SceneError(ld.loc, "LightSource \"infinite\": radiance is not finite (L or scale too large)");
       s_.infinite_emitters_.push_back(std::move(e));
     } else {
       throw SceneError(ld.loc, "unsupported light \"" + ld.type +
