@@ -112,6 +112,10 @@ Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, Ph
   // methods that evaluate those rows and columns (brute; the light tree knows surface kinds
   // only). Other methods still see media as attenuation of surface transport.
   const bool media_rows = plan.effects.media && plan.method->name() == "brute";
+  if (plan.effects.media && !media_rows)
+    spdlog::warn("method {} does not gather media rows yet: in-scattered light is omitted, media only "
+                 "attenuate surface transport (use --method brute for the full image)",
+                 plan.method->name());
   timer.End("build");
 
   std::unique_ptr<Filter> filter = MakeFilter(scene.hints());

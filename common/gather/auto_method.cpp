@@ -1,8 +1,10 @@
 // `--method auto`: the rule table (docs/rendering.md, "auto", shows the same table).
 //
 // Rows are tried in order; the first whose condition holds picks the first of its candidates the
-// registry knows (so a scene with media resolves to `adaptive-completion` once that method is
-// registered, and to `brute` until then). The accuracy row picks, among the measured surface
+// registry knows. A scene with media resolves to `brute`: it is the only method that gathers the
+// media rows and columns today (eye segments, medium VPLs; render_job.cpp), and every other one
+// would silently drop in-scattered light. Put `adaptive-completion` first in that row once it
+// gathers them (Huo 2016 is the media method). The accuracy row picks, among the measured surface
 // methods the registry knows, the one with the fewest shadow rays per pixel whose measured
 // rel_l2 is at most kSafety · target (the measurements are one scene: keep a margin); without
 // --param target_error the target is kDefaultTarget (the 2% goal).
@@ -61,7 +63,7 @@ struct Rule {
 
 const std::vector<Rule>& Rules() {
   static const std::vector<Rule> rules = {
-      {"media", [](const Effects& e, size_t) { return e.media; }, {"adaptive-completion", "brute"}},
+      {"media", [](const Effects& e, size_t) { return e.media; }, {"brute"}},
       {"few lights", [](const Effects&, size_t n) { return n <= kBruteMaxLights; }, {"brute"}},
       {"accuracy", [](const Effects&, size_t) { return true; }, {}},
   };

@@ -1,5 +1,5 @@
 // `--method auto`: the rule table resolves surface scenes by light count and accuracy target,
-// media scenes to adaptive-completion only when the registry has it, rejects a target that is
+// media scenes to the one method that gathers media rows (brute, for now), rejects a target that is
 // not a number in (0, 1], and a render names the resolved method in its stats.
 #include <gtest/gtest.h>
 #include <sys/wait.h>
@@ -30,11 +30,6 @@ std::string Resolve(const Effects& e, size_t lights, std::vector<std::string> pa
   return ResolveAutoMethod(e, lights, OptionMap::Parse(params)).method;
 }
 
-bool Registered(const std::string& name) {
-  const std::vector<std::string> names = GatherMethodNames();
-  return std::find(names.begin(), names.end(), name) != names.end();
-}
-
 TEST(AutoMethod, SurfaceScenesResolveByLightCountAndTarget) {
   const Effects e = SurfaceEffects();
   // Few lights: brute force is cheap and exact.
@@ -51,12 +46,11 @@ TEST(AutoMethod, SurfaceScenesResolveByLightCountAndTarget) {
     EXPECT_NO_THROW(CreateGatherMethod(Resolve(e, 20000, {target}), OptionMap())) << target;
 }
 
-TEST(AutoMethod, MediaResolveToAdaptiveCompletionOnlyWhenRegistered) {
+TEST(AutoMethod, MediaResolveToTheMethodThatGathersMediaRows) {
   Effects e = SurfaceEffects();
   e.media = true;
-  const std::string expected = Registered("adaptive-completion") ? "adaptive-completion" : "brute";
-  EXPECT_EQ(Resolve(e, 20000), expected);
-  EXPECT_EQ(Resolve(e, 20000, {"target_error=0.1"}), expected);
+  EXPECT_EQ(Resolve(e, 20000), "brute");
+  EXPECT_EQ(Resolve(e, 20000, {"target_error=0.1"}), "brute");
 }
 
 TEST(AutoMethod, InvalidTargetIsAnOptionError) {
