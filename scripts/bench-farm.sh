@@ -42,7 +42,7 @@ now() { date +%s.%N; }
 farm=(); embedded=()
 for r in $(seq "$repeats"); do
   t0=$(now)
-  "$lf" submit "$scene" --server "127.0.0.1:$port" --wait --quiet --out "$work/farm-$r.exr" "${job[@]}"
+  "$lf" submit "$scene" --server "127.0.0.1:$port" --wait --quiet --out "$work/farm-$r.exr" "${job[@]}" >/dev/null
   farm+=("$(awk "BEGIN{print $(now) - $t0}")")
   t0=$(now)
   "$lf" render "$scene" --threads 2 --quiet --out "$work/embedded-$r.exr" "${job[@]}"
