@@ -8,8 +8,10 @@ set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 build=${LIGHTFARM_ASAN_BUILD:-$root/build-asan}
 bash "$root/scripts/install-deps.sh"
+# No -Werror here: the Release build gates warnings on the same sources, and ASan's
+# instrumentation makes GCC 12's flow analysis report false -Wmaybe-uninitialized positives in
+# libstdc++ (std::regex's NFA, seen on cli/render_options.cpp).
 werror=OFF
-[ -n "${CI:-}" ] && werror=ON
 if [ ! -f "$build/build.ninja" ]; then
   # -O1: close to the optimised code the bugs live in, at half the compile time of -O2 -g.
   cmake -S "$root" -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
