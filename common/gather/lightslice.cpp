@@ -68,6 +68,7 @@
 #include <stdexcept>
 
 #include "common/gather/methods.h"
+#include "common/util/payload_bytes.h"
 #include "common/util/rng.h"
 
 namespace lightfarm {
@@ -88,60 +89,6 @@ struct LightSliceSettings {
   LightSliceLocalOptions local;
 };
 
-// --- Bytes of payloads and artifacts (host byte order, as every farm machine here) ----------
-
-class Writer {
- public:
-  template <typename T>
-  void Put(const T& v) {
-    Append(&v, sizeof(T));
-  }
-  template <typename T>
-  void PutArray(const std::vector<T>& v) {
-    Append(v.data(), v.size() * sizeof(T));
-  }
-  std::vector<uint8_t> Take() { return std::move(bytes_); }
-
- private:
-  void Append(const void* p, size_t n) {
-    const uint8_t* b = static_cast<const uint8_t*>(p);
-    bytes_.insert(bytes_.end(), b, b + n);
-  }
-  std::vector<uint8_t> bytes_;
-};
-
-class Reader {
- public:
-  Reader(const std::vector<uint8_t>& bytes, const char* what) : bytes_(bytes), what_(what) {}
-  template <typename T>
-  T Get() {
-    T v;
-    std::memcpy(&v, Take(sizeof(T)), sizeof(T));
-    return v;
-  }
-  template <typename T>
-  void GetArray(std::vector<T>* v, size_t count) {
-    if (count > (bytes_.size() - pos_) / sizeof(T)) Fail();
-    v->resize(count);
-    std::memcpy(v->data(), Take(count * sizeof(T)), count * sizeof(T));
-  }
-  void Skip(size_t n) { Take(n); }
-  bool AtEnd() const { return pos_ == bytes_.size(); }
-
- private:
-  const uint8_t* Take(size_t n) {
-    if (n > bytes_.size() - pos_) Fail();
-    const uint8_t* p = bytes_.data() + pos_;
-    pos_ += n;
-    return p;
-  }
-  [[noreturn]] void Fail() const {
-    throw std::runtime_error(std::string("lightslice: truncated or corrupt ") + what_);
-  }
-  const std::vector<uint8_t>& bytes_;
-  const char* what_;
-  size_t pos_ = 0;
-};
 
 // One reduced row of R: which lights are non-zero, and their values in light order.
 struct SampledRow {
@@ -243,7 +190,7 @@ TaskOutput LightSliceGather::RunRowTask(const GatherContext& ctx, const SubMatri
   const size_t n = matrix.cols(), words = (n + 63) / 64;
   const size_t blocks = (n + kColumnBlock - 1) / kColumnBlock;
   TaskOutput result;
-  Writer out;
+  PayloadWriter out;
   out.Put(kRowsMagic);
   out.Put(task.seed);
   out.Put(uint64_t(n));
@@ -288,7 +235,7 @@ StageArtifact LightSliceGather::Combine(int stage, const GatherContext& ctx,
   uint64_t seed = 0;
   std::vector<SampledRow> rows;
   for (size_t t = 0; t < outputs.size(); ++t) {
-    Reader in(outputs[t].payload, "row-stage payload");
+    PayloadReader in(outputs[t].payload, "lightslice", "row-stage payload");
     if (in.Get<uint32_t>() != kRowsMagic)
       throw std::runtime_error("lightslice: the row stage returned a payload of another method");
     const uint64_t task_seed = in.Get<uint64_t>();
@@ -345,7 +292,7 @@ StageArtifact LightSliceGather::Combine(int stage, const GatherContext& ctx,
     for (uint32_t j : global.clusters[k].lights) cluster_of[j] = uint32_t(k);
 
   // Artifact: the clustering and R, 16-bit log-encoded (see the top of this file).
-  Writer out;
+  PayloadWriter out;
   out.Put(kArtifactMagic);
   out.Put(seed);
   out.Put(uint64_t(n));
@@ -371,7 +318,7 @@ StageArtifact LightSliceGather::Combine(int stage, const GatherContext& ctx,
 
 GlobalClusters LightSliceGather::DecodeArtifact(const StageArtifact& bytes, size_t lights,
                                                 const std::set<uint32_t>& slices) const {
-  Reader in(bytes, "cluster artifact");
+  PayloadReader in(bytes, "lightslice", "cluster artifact");
   if (in.Get<uint32_t>() != kArtifactMagic)
     throw std::runtime_error("lightslice: the slice stage received an artifact of another method");
   GlobalClusters g;

@@ -56,6 +56,7 @@
 
 #include "common/gather/methods.h"
 #include "common/gather/mrcs_clustering.h"
+#include "common/util/payload_bytes.h"
 #include "common/util/rng.h"
 
 namespace lightfarm {
@@ -279,59 +280,6 @@ std::vector<std::vector<uint32_t>> SplitUntil(const Eigen::MatrixXf& points,
   return done;
 }
 
-// --- Byte encoding of payloads and artifacts (host byte order, as every farm machine here) ---
-
-class ByteWriter {
- public:
-  template <typename T>
-  void Put(const T& v) {
-    Append(&v, sizeof(T));
-  }
-  template <typename T>
-  void PutArray(const std::vector<T>& v) {
-    Append(v.data(), v.size() * sizeof(T));
-  }
-  std::vector<uint8_t> Take() { return std::move(bytes_); }
-
- private:
-  void Append(const void* p, size_t n) {
-    const uint8_t* b = static_cast<const uint8_t*>(p);
-    bytes_.insert(bytes_.end(), b, b + n);
-  }
-  std::vector<uint8_t> bytes_;
-};
-
-class ByteReader {
- public:
-  ByteReader(const std::vector<uint8_t>& bytes, const char* what) : bytes_(bytes), what_(what) {}
-  template <typename T>
-  T Get() {
-    T v;
-    std::memcpy(&v, Take(sizeof(T)), sizeof(T));
-    return v;
-  }
-  template <typename T>
-  void GetArray(std::vector<T>* v, size_t count) {
-    if (count > (bytes_.size() - pos_) / sizeof(T)) Fail();
-    v->resize(count);
-    std::memcpy(v->data(), Take(count * sizeof(T)), count * sizeof(T));
-  }
-  bool AtEnd() const { return pos_ == bytes_.size(); }
-
- private:
-  const uint8_t* Take(size_t n) {
-    if (n > bytes_.size() - pos_) Fail();
-    const uint8_t* p = bytes_.data() + pos_;
-    pos_ += n;
-    return p;
-  }
-  [[noreturn]] void Fail() const {
-    throw std::runtime_error(std::string("mrcs: truncated or corrupt ") + what_);
-  }
-  const std::vector<uint8_t>& bytes_;
-  const char* what_;
-  size_t pos_ = 0;
-};
 
 constexpr uint32_t kRowsMagic = 0x3052434d;      // "MCR0"
 constexpr uint32_t kArtifactMagic = 0x3141434d;  // "MCA1"
@@ -352,7 +300,7 @@ struct ClusterArtifact {
 };
 
 StageArtifact EncodeArtifact(const ClusterArtifact& a) {
-  ByteWriter out;
+  PayloadWriter out;
   out.Put(kArtifactMagic);
   out.Put(a.sampled_rows);
   out.Put(a.zero_norm_columns);
@@ -365,7 +313,7 @@ StageArtifact EncodeArtifact(const ClusterArtifact& a) {
 }
 
 ClusterArtifact DecodeArtifact(const StageArtifact& bytes, size_t lights) {
-  ByteReader in(bytes, "cluster artifact");
+  PayloadReader in(bytes, "mrcs", "cluster artifact");
   ClusterArtifact a;
   if (in.Get<uint32_t>() != kArtifactMagic)
     throw std::runtime_error("mrcs: the column stage received an artifact of another method");
@@ -533,7 +481,7 @@ TaskOutput MatrixRowColumnSampling::RunRowTask(const GatherContext& ctx,
   });
   TaskOutput result;
   for (const MatrixCounters& c : counters) result.counters.Add(c);
-  ByteWriter out;
+  PayloadWriter out;
   out.Put(kRowsMagic);
   out.Put(task.seed);
   out.Put(uint64_t(n));
@@ -573,7 +521,7 @@ StageArtifact MatrixRowColumnSampling::Combine(int stage, const GatherContext& c
   std::vector<ReducedRow> rows;
   std::vector<double> channel_squares;  // 3 per light, when colour averaging
   for (size_t t = 0; t < outputs.size(); ++t) {
-    ByteReader in(outputs[t].payload, "row-stage payload");
+    PayloadReader in(outputs[t].payload, "mrcs", "row-stage payload");
     if (in.Get<uint32_t>() != kRowsMagic)
       throw std::runtime_error("mrcs: the row stage returned a payload of another method");
     uint64_t task_seed = in.Get<uint64_t>();
