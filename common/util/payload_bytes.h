@@ -47,6 +47,7 @@ class PayloadReader {
   void GetArray(std::vector<T>* v, size_t count) {
     if (count > (bytes_.size() - pos_) / sizeof(T)) Fail();
     v->resize(count);
+    if (count == 0) return;  // an empty vector's data() may be null: no memcpy (UBSan)
     std::memcpy(v->data(), Take(count * sizeof(T)), count * sizeof(T));
   }
   void Skip(size_t n) { Take(n); }
