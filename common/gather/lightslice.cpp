@@ -472,16 +472,7 @@ LightSliceLocalClustering LightSliceRefine(const Eigen::MatrixXf& local,
     const std::vector<std::vector<uint32_t>> split =
         MrcsSplitClusters(points, std::move(groups), c_plus, seed);
     c.objective = MrcsObjective(points, split);
-    for (const std::vector<uint32_t>& g : split) {
-      MrcsCluster cluster;
-      double s = 0;
-      for (uint32_t p : g) s += w[lit[p]];
-      for (uint32_t p : g) {
-        cluster.lights.push_back(lit[p]);
-        cluster.pmf.push_back(g.size() == 1 ? 1.0 : w[lit[p]] / s);
-      }
-      c.clusters.push_back(std::move(cluster));
-    }
+    for (const std::vector<uint32_t>& g : split) c.clusters.push_back(MrcsWeightedCluster(g, lit, w));
   }
   // Dark lights: the rows say nothing about them here, so runs of equal power in global-cluster
   // order, representative ∝ power (mrcs's zero-norm clusters, MrcsBuildClusters with no points).

@@ -740,6 +740,18 @@ Eigen::MatrixXf MrcsProjectionMatrix(int dims, int rows, uint64_t seed) {
   return P;
 }
 
+MrcsCluster MrcsWeightedCluster(std::span<const uint32_t> group, std::span<const uint32_t> ids,
+                                std::span<const double> weight) {
+  MrcsCluster cluster;
+  double s = 0;
+  for (uint32_t p : group) s += weight[ids[p]];
+  for (uint32_t p : group) {
+    cluster.lights.push_back(ids[p]);
+    cluster.pmf.push_back(group.size() == 1 ? 1.0 : weight[ids[p]] / s);
+  }
+  return cluster;
+}
+
 MrcsClustering MrcsBuildClusters(const Eigen::MatrixXf& points,
                                  std::span<const uint32_t> point_lights,
                                  std::span<const double> norms, std::span<const float> power,
@@ -778,16 +790,8 @@ MrcsClustering MrcsBuildClusters(const Eigen::MatrixXf& points,
   if (n_plus > 0) {
     std::vector<std::vector<uint32_t>> groups = MrcsClusterPoints(points, c_plus, seed);
     out.objective = MrcsObjective(points, groups);
-    for (const std::vector<uint32_t>& g : groups) {
-      MrcsCluster cluster;
-      double s = 0;
-      for (uint32_t p : g) s += norms[point_lights[p]];
-      for (uint32_t p : g) {
-        cluster.lights.push_back(point_lights[p]);
-        cluster.pmf.push_back(g.size() == 1 ? 1.0 : norms[point_lights[p]] / s);
-      }
-      out.clusters.push_back(std::move(cluster));
-    }
+    for (const std::vector<uint32_t>& g : groups)
+      out.clusters.push_back(MrcsWeightedCluster(g, point_lights, norms));
   }
   // Columns with ‖ρ‖ = 0 (dark in every sampled row): no row information, so runs of equal
   // power along `zero_order`, representative ∝ power luminance (Sec. 3.3's unbiased remedy).

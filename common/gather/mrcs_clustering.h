@@ -69,6 +69,11 @@ struct MrcsCluster {
   bool zero_norm = false;        // columns with ‖ρ‖ = 0, sampled ∝ luminance of light power
 };
 
+// The cluster of the columns ids[p], p ∈ group, whose representative is picked ∝ weight[ids[p]]
+// (Hašan 2007, Sec. 3.3); a single column is picked with probability 1.
+MrcsCluster MrcsWeightedCluster(std::span<const uint32_t> group, std::span<const uint32_t> ids,
+                                std::span<const double> weight);
+
 struct MrcsClustering {
   std::vector<MrcsCluster> clusters;  // the ‖ρ‖ > 0 clusters first, then the zero-norm ones
   double objective = 0;               // of the ‖ρ‖ > 0 clusters, on the clustered points
