@@ -345,15 +345,18 @@ class TreeBuilder {
 LightTree LightTree::Build(const LightSet& lights, uint64_t seed) {
   LightTree tree;
   const size_t n = lights.size();
-  tree.nodes_.resize(n == 0 ? 0 : 2 * n - 1 + 3);  // trimmed below: one tree per kind
+  // One tree per kind present; medium VPLs (isotropic-ish points inside a medium) cluster by
+  // position like point lights. Sized for the worst case, trimmed below.
+  constexpr size_t kKindCount = size_t(VirtualLightKind::kMediumVPL) + 1;
+  tree.nodes_.resize(n == 0 ? 0 : 2 * n - 1 + (kKindCount - 1));
   tree.order_.resize(n);
   if (n == 0) return tree;
 
   // Group the lights by kind, in index order inside a kind.
-  constexpr std::array<VirtualLightKind, 4> kKinds = {
+  constexpr std::array<VirtualLightKind, kKindCount> kKinds = {
       VirtualLightKind::kAreaVPL, VirtualLightKind::kSurfaceVPL, VirtualLightKind::kPoint,
-      VirtualLightKind::kDirectional};
-  std::array<size_t, 4> counts{};
+      VirtualLightKind::kDirectional, VirtualLightKind::kMediumVPL};
+  std::array<size_t, kKindCount> counts{};
   double total_lum = 0;
   for (const VirtualLight& l : lights.lights) {
     ++counts[size_t(l.kind)];
@@ -361,11 +364,11 @@ LightTree LightTree::Build(const LightSet& lights, uint64_t seed) {
   }
   // Zero-power lights get a small weight so they still cluster by position.
   const float floor_weight = total_lum > 0 ? float(1e-6 * total_lum / double(n)) : 1.f;
-  std::array<size_t, 4> offsets{};
-  for (size_t k = 1; k < 4; ++k) offsets[k] = offsets[k - 1] + counts[k - 1];
+  std::array<size_t, kKindCount> offsets{};
+  for (size_t k = 1; k < kKindCount; ++k) offsets[k] = offsets[k - 1] + counts[k - 1];
   std::vector<BuildLight> build(n);
   {
-    std::array<size_t, 4> fill = offsets;
+    std::array<size_t, kKindCount> fill = offsets;
     for (uint32_t i = 0; i < n; ++i) {
       const VirtualLight& l = lights.lights[i];
       BuildLight& b = build[fill[size_t(l.kind)]++];

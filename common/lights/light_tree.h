@@ -1,8 +1,8 @@
 // A Lightcuts-style binary light tree (Walter et al. 2005, Sec. 4): leaves are the virtual
 // lights, inner nodes cluster lights of one kind by position (and orientation), each node keeps
 // its bounds, total intensity and a representative light chosen with probability ∝ intensity.
-// Separate trees per light kind (area/surface VPLs are oriented, points are not, directional
-// lights cluster by direction); `roots()` lists them. Used by lightcuts, lightslice,
+// Separate trees per light kind (area/surface VPLs are oriented, points and medium VPLs are not,
+// directional lights cluster by direction); `roots()` lists them. Used by lightcuts, lightslice,
 // sparse-completion (the global cut) and adaptive-completion.
 #pragma once
 
