@@ -109,12 +109,12 @@ Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, Ph
     params.RejectUnused();
   }
   // Eye segments and medium VPLs exist only when a medium is reachable, and only for gather
-  // methods that evaluate those rows and columns (brute; the light tree knows surface kinds
-  // only). Other methods still see media as attenuation of surface transport.
-  const bool media_rows = plan.effects.media && plan.method->name() == "brute";
+  // methods that evaluate those rows and columns (GatherMethod::gathers_media). Others still see
+  // media as attenuation of surface transport, and say so.
+  const bool media_rows = plan.effects.media && plan.method->gathers_media();
   if (plan.effects.media && !media_rows)
     spdlog::warn("method {} does not gather media rows yet: in-scattered light is omitted, media only "
-                 "attenuate surface transport (use --method brute for the full image)",
+                 "attenuate surface transport (use another method for the full image)",
                  plan.method->name());
   timer.End("build");
 

@@ -52,6 +52,10 @@ class GatherMethod {
   virtual std::string name() const = 0;
   virtual int stage_count() const { return 1; }
   virtual bool needs_light_tree() const { return false; }
+  // Whether the method gathers media rows and columns (eye segments, medium VPLs). Methods that
+  // only sample matrix entries do; a method that bounds elements analytically (lightcuts) needs
+  // bounds for every element type first, and until then sees media as attenuation only.
+  virtual bool gathers_media() const { return true; }
   virtual std::string stage_name(int stage) const { return stage == 0 ? "gather" : "stage" + std::to_string(stage); }
 
   // The tasks of a stage. `tiles` are the plan's row partitions (slices), covering every row once;

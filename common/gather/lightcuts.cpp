@@ -382,6 +382,8 @@ class LightcutsGather final : public GatherMethod {
 
   std::string name() const override { return "lightcuts"; }
   bool needs_light_tree() const override { return true; }
+  // Its bounds know surface elements only (material × geometry × cone); media rows need their own.
+  bool gathers_media() const override { return false; }
 
   TaskOutput RunTask(const GatherContext& ctx, const SubMatrixTask& task,
                      const StageArtifact&) const override {
