@@ -22,7 +22,7 @@ namespace fs = std::filesystem;
 namespace {
 
 // Bump when the cached format or the meaning of the key changes.
-constexpr uint64_t kReferenceFormat = 1;
+constexpr uint64_t kReferenceFormat = 2;  // 2: subsets include eye-segment rows
 // Files above this size (volume grids) are hashed by size and mtime, not content.
 constexpr uintmax_t kContentHashLimit = uintmax_t(64) << 20;
 // Stream id of the pixel-subset choice (outside RngStream's range: bench only).
@@ -147,7 +147,7 @@ BenchReference ComputeReference(const ReferenceRequest& r) {
   for (uint32_t p : ref.pixels) chosen[p] = 1;
   std::vector<uint32_t> rows;
   for (const CameraSample& cs : plan.receivers.samples)
-    if (chosen[cs.pixel] && cs.point >= 0) rows.push_back(uint32_t(cs.point));
+    if (chosen[cs.pixel]) SampleRows(plan, cs, &rows);
   std::sort(rows.begin(), rows.end());
   rows.erase(std::unique(rows.begin(), rows.end()), rows.end());
   std::vector<RGBAccum> sums(plan.matrix->rows());
@@ -159,11 +159,7 @@ BenchReference ComputeReference(const ReferenceRequest& r) {
   const double gather_seconds = std::chrono::duration<double>(Clock::now() - t_gather).count();
   Film film(w, h);
   for (const CameraSample& cs : plan.receivers.samples) {
-    if (!chosen[cs.pixel]) continue;
-    RGBAccum L;
-    L.Add(cs.emitted);
-    if (cs.point >= 0) L.Add(sums[cs.point]);
-    film.AddSample(int(cs.pixel), L.ToRGB(), cs.weight);
+    if (chosen[cs.pixel]) film.AddSample(int(cs.pixel), SampleRadiance(plan, cs, sums), cs.weight);
   }
   ref.image = film.Resolve();
   // Full brute force would evaluate every row: scale the gather's cost by rows / subset rows.

@@ -207,18 +207,28 @@ GatherOutcome RunStagesLocally(const Plan& plan, const ProgressFn& progress, Pha
   return outcome;
 }
 
+void SampleRows(const Plan& plan, const CameraSample& cs, std::vector<uint32_t>* rows) {
+  if (cs.point >= 0) rows->push_back(uint32_t(cs.point));
+  // In-scattered light along the sample's eye segments (rows after the point rows).
+  const size_t npoints = plan.receivers.points.size();
+  for (uint32_t k = 0; k < cs.segment_count; ++k)
+    rows->push_back(uint32_t(npoints + size_t(cs.first_segment) + k));
+}
+
+RGB SampleRadiance(const Plan& plan, const CameraSample& cs, const std::vector<RGBAccum>& row_sums) {
+  RGBAccum L;
+  L.Add(cs.emitted);
+  if (cs.point >= 0) L.Add(row_sums[cs.point]);
+  const size_t npoints = plan.receivers.points.size();
+  for (uint32_t k = 0; k < cs.segment_count; ++k)
+    L.Add(row_sums[npoints + size_t(cs.first_segment) + k]);
+  return L.ToRGB();
+}
+
 Image AssembleImage(const Plan& plan, const std::vector<RGBAccum>& row_sums, uint64_t* nan_samples) {
   Film film(plan.receivers.width, plan.receivers.height);
-  for (const CameraSample& cs : plan.receivers.samples) {
-    RGBAccum L;
-    L.Add(cs.emitted);
-    if (cs.point >= 0) L.Add(row_sums[cs.point]);
-    // In-scattered light along the sample's eye segments (rows after the point rows).
-    const size_t npoints = plan.receivers.points.size();
-    for (uint32_t k = 0; k < cs.segment_count; ++k)
-      L.Add(row_sums[npoints + size_t(cs.first_segment) + k]);
-    film.AddSample(int(cs.pixel), L.ToRGB(), cs.weight);
-  }
+  for (const CameraSample& cs : plan.receivers.samples)
+    film.AddSample(int(cs.pixel), SampleRadiance(plan, cs, row_sums), cs.weight);
   if (nan_samples) *nan_samples = film.nan_samples();
   return film.Resolve();
 }

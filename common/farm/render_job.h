@@ -77,7 +77,14 @@ using ProgressFn = std::function<void(const std::string& phase, size_t done, siz
 // parallel inside), combining between stages as the coordinator would.
 GatherOutcome RunStagesLocally(const Plan& plan, const ProgressFn& progress, PhaseTimes* times);
 
-// Film from row sums: each camera sample adds its emission and its receiver's row sum.
+// The matrix rows a camera sample's radiance sums: its shading point's row, then its eye
+// segments' rows (after the point rows), in that order. Appends to `rows`.
+void SampleRows(const Plan& plan, const CameraSample& cs, std::vector<uint32_t>* rows);
+// A camera sample's radiance: its emission plus the row sums of SampleRows, in that order (so
+// every caller adds the same floats in the same order and gets the same bits).
+RGB SampleRadiance(const Plan& plan, const CameraSample& cs, const std::vector<RGBAccum>& row_sums);
+
+// Film from row sums: each camera sample adds its SampleRadiance.
 Image AssembleImage(const Plan& plan, const std::vector<RGBAccum>& row_sums, uint64_t* nan_samples);
 
 // The stats JSON (keys are a contract: DESIGN.md).

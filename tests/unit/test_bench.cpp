@@ -205,6 +205,24 @@ TEST(BenchReference, PixelSubsetEqualsTheFullReferenceOnItsPixels) {
   EXPECT_NEAR(subset.brute_shadow_rays / full.brute_shadow_rays, 1.0, 0.35);
 }
 
+// Media rows (eye segments) belong to a pixel's reference too: the subset brute force of a media
+// scene must sum them exactly as the full render does (it once summed the shading points only).
+TEST(BenchReference, PixelSubsetOfAMediaSceneIncludesInScatteredLight) {
+  RenderSettings s = Tiny(200);
+  s.width = s.height = 12;
+  const std::string scene = SharedScene("volumetric-caustic");
+  const BenchReference full = GetReference({scene, s, 0, ""});
+  const BenchReference subset = GetReference({scene, s, 29, ""});
+  ASSERT_EQ(subset.pixels.size(), 29u);
+  size_t nonzero = 0;
+  for (uint32_t p : subset.pixels) {
+    for (int c = 0; c < 3; ++c) EXPECT_EQ(subset.image.pixels[p][c], full.image.pixels[p][c]) << p;
+    nonzero += full.image.pixels[p].Luminance() > 0;
+  }
+  EXPECT_GT(nonzero, 20u);
+  EXPECT_EQ(CompareWithReference(subset, full.image).rel_l2, 0.0);
+}
+
 TEST(BenchReference, PixelSubsetIsSeededAndDistinct) {
   const std::vector<uint32_t> a = ReferencePixelSubset(64, 32, 500, 3);
   EXPECT_EQ(a, ReferencePixelSubset(64, 32, 500, 3));
