@@ -4,9 +4,15 @@
 # resolutions, three light counts). Every number comes from a bench this script runs; the
 # command, machine and commit are written beside it. Never edit the output by hand: re-run.
 #
-# Usage: scripts/report-accuracy.sh [--quick | --standard]
+# Usage: scripts/report-accuracy.sh [--quick | --standard | --surface]
 #   --quick     CI-sized: 32x32 and 48x48, 10^3/10^4 lights, 1 repeat (minutes)
 #   --standard  256x256 and 384x384, 10^4/10^5 lights, 1 repeat, 1024 reference pixels (hours)
+#   --surface   only the issue-3 surface table, into docs/surface-methods.md: cornell-box and
+#               veach-mis at 256x256 with 10^4/10^5/10^6 lights and 384x384 with 10^4/10^5,
+#               1 repeat, 1024 reference pixels (about two hours on 2 cores)
+#   --media     only the issue-4 media table, into docs/media-methods.md: volumetric-caustic and
+#               the cloud scene at 256x256 with 1000 and 4000 lights, adaptive-completion against
+#               brute force, 1 repeat, 1024 reference pixels
 #   (none)      the full report: 256x256 and 512x512, 10^4/10^5/10^6 lights, 3 repeats
 # Env: LIGHTFARM_SHARED (shared data), LIGHTFARM_BUILD (build dir), LIGHTFARM_THREADS (0 = all),
 #      LIGHTFARM_CACHE (reference cache root; default build/bench-cache)
@@ -16,15 +22,23 @@ shared=${LIGHTFARM_SHARED:-$(cd "$root/.." && pwd)/shared}
 build=${LIGHTFARM_BUILD:-$root/build}
 threads=${LIGHTFARM_THREADS:-0}
 export LIGHTFARM_CACHE=${LIGHTFARM_CACHE:-$build/bench-cache}
-quick=0; standard=0
+quick=0; standard=0; surface=0; media=0
 [ "${1:-}" = "--quick" ] && quick=1
 [ "${1:-}" = "--standard" ] && standard=1
+[ "${1:-}" = "--surface" ] && surface=1
+[ "${1:-}" = "--media" ] && media=1
 if [ ! -f "$build/build.ninja" ]; then bash "$root/scripts/build.sh" "$build" >/dev/null; fi
 cmake --build "$build" --target lightfarm -j "$(nproc)" >/dev/null
 lf="$build/lightfarm"
 out="$root/docs/accuracy.md"
 assets="$root/docs/accuracy"
 work="$build/accuracy-runs"
+if [ $surface = 1 ]; then
+  out="$root/docs/surface-methods.md"; assets="$root/docs/surface-methods"; work="$build/surface-runs"
+fi
+if [ $media = 1 ]; then
+  out="$root/docs/media-methods.md"; assets="$root/docs/media-methods"; work="$build/media-runs"
+fi
 rm -rf "$work" "$assets.tmp"
 mkdir -p "$work" "$assets.tmp"
 
@@ -32,6 +46,11 @@ mkdir -p "$work" "$assets.tmp"
 # first resolution and adds one larger resolution.
 if [ $quick = 1 ]; then
   acc_res=32x32; lights=1000,10000; repeats=1; ref_pixels=256; surf_res=48x48
+elif [ $surface = 1 ]; then
+  acc_res=256x256; lights=10000,100000,1000000; repeats=1; ref_pixels=1024; surf_res=384x384
+  surf_lights=10000,100000
+elif [ $media = 1 ]; then
+  acc_res=256x256; lights=1000,4000; repeats=1; ref_pixels=1024
 elif [ $standard = 1 ]; then
   acc_res=256x256; lights=10000,100000; repeats=1; ref_pixels=1024; surf_res=384x384
 else
@@ -60,21 +79,29 @@ bench() {  # tag scene-name args... : one bench into $work/tag; false if it fail
   echo "$((SECONDS - t0))" > "$work/$tag.seconds"
 }
 
+[ $surface = 1 ] && scenes=(cornell-box veach-mis)
+media_args=()
+if [ $media = 1 ]; then
+  media_scenes=()
+  for s in "${scenes[@]}"; do [ "$s" = volumetric-caustic ] || [[ "$s" == *cloud* ]] && media_scenes+=("$s"); done
+  scenes=("${media_scenes[@]}")
+  media_args=(--methods adaptive-completion)
+fi
 for s in "${scenes[@]}"; do
   bench "acc-$s" "$s" --resolution "$acc_res" --lights "$lights" --repeats "$repeats" \
-    --reference-pixels "$ref_pixels" || true
+    --reference-pixels "$ref_pixels" "${media_args[@]+"${media_args[@]}"}" || true
 done
-for s in cornell-box veach-mis; do
-  bench "surf-$s-$surf_res" "$s" --resolution "$surf_res" --lights "$lights" --repeats "$repeats" \
+[ $media = 1 ] || for s in cornell-box veach-mis; do
+  bench "surf-$s-$surf_res" "$s" --resolution "$surf_res" --lights "${surf_lights:-$lights}" --repeats "$repeats" \
     --reference-pixels "$ref_pixels" || true
 done
 
 commit=$(git -C "$root" rev-parse --short HEAD)$(git -C "$root" diff --quiet HEAD -- . ':!docs' || echo "+uncommitted")
 machine="$(nproc) cores ($(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs)), $(free -g | awk '/Mem:/{print $2}') GiB"
-mode=full; [ $quick = 1 ] && mode=quick; [ $standard = 1 ] && mode=standard
+mode=full; [ $quick = 1 ] && mode=quick; [ $standard = 1 ] && mode=standard; [ $surface = 1 ] && mode=surface; [ $media = 1 ] && mode=media
 python3 - "$work" "$assets.tmp" "$out.tmp" "$commit" "$machine" "$mode" "$(date -u +%Y-%m-%dT%H:%MZ)" \
   "${skipped[@]+"${skipped[@]}"}" <<'PY'
-import csv, os, re, shutil, statistics, sys
+import csv, math, os, re, shutil, statistics, sys
 from collections import defaultdict
 work, assets, out, commit, machine, mode, date = sys.argv[1:8]
 skipped = sys.argv[8:]
@@ -106,7 +133,8 @@ def secs(tag):
     return open(p).read().strip() if os.path.exists(p) else "?"
 
 md = []
-md.append("# Accuracy versus time")
+md.append({"surface": "# Surface methods: accuracy versus time",
+           "media": "# Media: adaptive-completion against brute force"}.get(mode, "# Accuracy versus time"))
 md.append("")
 md.append(f"Generated by `scripts/report-accuracy.sh{'' if mode == 'full' else ' --' + mode}` on {date} at commit "
           f"`{commit}` on {machine}. Every table comes from the `lightfarm bench` command printed "
@@ -116,6 +144,16 @@ if quick:
     md.append("**Quick mode** (CI-sized: 32² and 48² images, 10³–10⁴ lights, one repeat): shows that the "
               "pipeline works and the trends, not the numbers the targets are about. The full run is "
               "`scripts/report-accuracy.sh` (256² and 512², 10⁴–10⁶ lights, 3 repeats).")
+if mode == "surface":
+    md.append("")
+    md.append("**Surface mode** (the issue-3 table: cornell-box and veach-mis at 256² with 10⁴–10⁶ lights "
+              "and 384² with 10⁴–10⁵ lights, one repeat, errors on 1024 seeded reference pixels). The "
+              "media scenes and the other plots are in [accuracy.md](accuracy.md).")
+if mode == "media":
+    md.append("")
+    md.append("**Media mode** (the issue-4 table: volumetric-caustic and the cloud scene at 256² with "
+              "1000 and 4000 lights, adaptive-completion's ρ/σ sweep against brute force with the same "
+              "lights, one repeat, errors on 1024 seeded reference pixels).")
 if mode == "standard":
     md.append("")
     md.append("**Standard mode** (256² and 384² images, 10⁴–10⁵ lights, one repeat, errors on 1024 "
@@ -165,6 +203,57 @@ for tag in sorted(t for t in os.listdir(work) if t.startswith("acc-") and os.pat
     md.append(f"\n({secs(tag)} s for the whole bench; raw rows: [results.csv](accuracy/{scene}/results.csv))")
     md.append(text)
 
+# --- issue 4: media ---------------------------------------------------------------------------
+if mode == "media":
+    md.append("")
+    md.append("## Targets (issue 4)")
+    md.append("")
+    md.append("Target 1: at ≤ 2% rel_l1, adaptive-completion ≥ 20× faster than brute force (same lights; "
+              "brute force's time extrapolated from its reference pixels, *est.*). Target 2: at 4× the "
+              "lights, the same setting takes ≤ 2× the time.")
+    md.append("")
+    md.append("| scene | lights | fastest setting at ≤ 2% rel_l1 | time vs brute | speedup | elements evaluated | met |")
+    md.append("|---|---|---|---|---|---|---|")
+    scaling_rows = []
+    for tag in sorted(t for t in os.listdir(work) if t.startswith("acc-") and os.path.exists(os.path.join(work, t, "results.csv"))):
+        raw = rows(tag)
+        ms = medians(raw)
+        frac = defaultdict(list)
+        for r in raw:
+            frac[(int(r["lights"]), r["method"], r["setting"].replace(" ", ","))].append(float(r["fraction_evaluated"]))
+        counts = sorted({m["lights"] for m in ms})
+        for L in counts:
+            b = [m for m in ms if m["method"] == "brute" and m["lights"] == L]
+            ok = [m for m in ms if m["method"] != "brute" and m["lights"] == L and m["l1"] <= 0.02]
+            if not b:
+                continue
+            if not ok:
+                best = min((m for m in ms if m["method"] != "brute" and m["lights"] == L), key=lambda m: m["l1"], default=None)
+                note = f"none (best rel_l1 {best['l1']:.4f} at `{best['setting']}`, {best['time']:.3g} s)" if best else "none"
+                md.append(f"| {tag[4:]} | {L} | {note} | — | — | — | no |")
+                continue
+            f = min(ok, key=lambda m: m["time"])
+            sp = b[0]["time"] / f["time"]
+            fr = statistics.median(frac[(L, f["method"], f["setting"])])
+            md.append(f"| {tag[4:]} | {L} | {f['method']} `{f['setting']}` (rel_l1 {f['l1']:.4f}) | {f['time']:.3g} s vs "
+                      f"{b[0]['time']:.3g} s{' *est.*' if b[0]['est'] else ''} | {sp:.1f}× | {fr:.2%} | {'yes' if sp >= 20 else 'no'} |")
+        if len(counts) > 1:
+            lo, hi = counts[0], counts[-1]
+            for m in ms:
+                if m["method"] == "brute" or m["lights"] != lo:
+                    continue
+                h = [x for x in ms if x["method"] == m["method"] and x["setting"] == m["setting"] and x["lights"] == hi]
+                if h and m["time"] > 0:
+                    r = h[0]["time"] / m["time"]
+                    scaling_rows.append(f"| {tag[4:]} | {m['method']} `{m['setting']}` | {lo}→{hi} | "
+                                        f"{m['time']:.3g} s → {h[0]['time']:.3g} s | {r:.2f}× | {'yes' if r <= 2 else 'no'} |")
+    md.append("")
+    md.append("| scene | setting | lights | time | ratio | met (≤ 2×) |")
+    md.append("|---|---|---|---|---|---|")
+    md.extend(scaling_rows)
+    open(out, "w").write("\n".join(md) + "\n")
+    sys.exit(0)
+
 # --- issue 3: surface methods ---------------------------------------------------------------
 md.append("")
 md.append("## Surface methods (issue 3)")
@@ -174,6 +263,7 @@ md.append("cornell-box and veach-mis at two resolutions and three light counts: 
 surf = sorted(t for t in os.listdir(work) if (t.startswith("surf-") or t in ("acc-cornell-box", "acc-veach-mis"))
               and os.path.exists(os.path.join(work, t, "results.csv")))
 targets = []
+scaling = []
 for tag in surf:
     ms = medians(rows(tag))
     md.append("")
@@ -205,6 +295,22 @@ for tag in surf:
             ratio = b["rpp"] / r
             targets.append(f"| {label} | {L} | {method} | {r:.1f} vs brute {b['rpp']:.0f}: {ratio:.1f}× fewer | "
                            f"{'yes' if ratio >= 30 else 'no'} |")
+    # Time against light count for each method's settings present at every count: the exponent
+    # of a power law through the smallest and largest count (1 = linear).
+    if len(counts) > 1:
+        lo, hi = counts[0], counts[-1]
+        for method in sorted({m["method"] for m in ms} - {"brute"}):
+            exps = []
+            for m in ms:
+                if m["method"] != method or m["lights"] != lo:
+                    continue
+                h = [x for x in ms if x["method"] == method and x["setting"] == m["setting"] and x["lights"] == hi]
+                if h and m["time"] > 0 and h[0]["time"] > 0:
+                    exps.append(math.log(h[0]["time"] / m["time"]) / math.log(hi / lo))
+            if exps:
+                e = statistics.median(exps)
+                scaling.append(f"| {label} | {method} | {lo}→{hi} | {e:.2f} (settings: {len(exps)}, "
+                               f"range {min(exps):.2f}..{max(exps):.2f}) | {'yes' if e < 1 else 'no'} |")
     methods = {m["method"] for m in ms}
     if "sparse-completion" in methods and "lightslice" in methods:
         for err in (0.01, 0.02, 0.03, 0.05, 0.1):
@@ -225,6 +331,14 @@ md.append("")
 md.append("| bench | lights | method | fewest rays/pixel at ≤ 2% | met |")
 md.append("|---|---|---|---|---|")
 md.extend(targets)
+md.append("")
+md.append("Target 3: time grows sublinearly with the number of lights. Median over a method's settings "
+          "of the exponent e in time ∝ lights^e between the smallest and largest light count "
+          "(the whole render's wall time, light generation and tree building included).")
+md.append("")
+md.append("| bench | method | lights | exponent e | sublinear |")
+md.append("|---|---|---|---|---|")
+md.extend(scaling)
 open(out, "w").write("\n".join(md) + "\n")
 PY
 rm -rf "$assets"
