@@ -74,6 +74,7 @@ struct AdaptiveCompletionSettings {
   double beta = 0.01;           // Eq. 17
   double omega_per_basis = 2;   // |Ω| ≥ this · k rows (deviation 1b)
   double rank_tolerance = 0.1;  // of U_Ω, relative to its largest pivot (see 1d)
+  double near_distance = 0;     // near lights: within this × the slice's diagonal (see 5)
 };
 
 // Entries per parallel evaluation chunk (several of Embree's 256-ray batches).
@@ -132,11 +133,12 @@ struct NodeColumns {
 class SliceSolver {
  public:
   SliceSolver(const LightingMatrix& matrix, const LightTree& tree,
-              const std::vector<double>& prefix, const SubMatrixTask& task,
-              const AdaptiveCompletionSettings& s, TaskOutput* out)
+              const std::vector<double>& prefix, const std::vector<uint8_t>& near,
+              const SubMatrixTask& task, const AdaptiveCompletionSettings& s, TaskOutput* out)
       : matrix_(matrix),
         tree_(tree),
         prefix_(prefix),
+        near_(near),
         task_(task),
         s_(s),
         out_(out),
@@ -144,6 +146,7 @@ class SliceSolver {
         completion_(3 * size_t(m_), ColumnCompletionOptions{.rank_tolerance = s.rank_tolerance}) {}
 
   void Run() {
+    EvaluateNearLights();
     RedrawOmega();
     // The roots, then the worst node split while Eq. 17 asks for it
     std::vector<NodeEstimate> roots = Evaluate(tree_.roots());
@@ -183,7 +186,7 @@ class SliceSolver {
     uint64_t negative = 0;
     for (uint32_t i = 0; i < m_; ++i)
       for (int c = 0; c < 3; ++c) {
-        double v = sums(3 * Eigen::Index(i) + c);
+        double v = sums(3 * Eigen::Index(i) + c) + near_sums_(3 * Eigen::Index(i) + c);
         if (!(v >= 0)) {
           ++negative;
           v = 0;
@@ -199,6 +202,7 @@ class SliceSolver {
     st["nodes_split"] = double(nodes_split_);
     st["cut_nodes"] = double(in_cut);
     st["omega_redraws"] = double(omega_redraws_);
+    st["near_columns"] = double(near_columns_);
     st["speculative_entries"] = double(speculative_entries_);
     st["negative_channels"] = double(negative);
     st["observed_residual"] =
@@ -208,6 +212,33 @@ class SliceSolver {
  private:
   uint64_t SeedFor(RngStream stream, uint64_t index) const {
     return HashSeed({task_.seed, task_.stage, task_.task_id, uint64_t(stream), index});
+  }
+
+  // Near lights (see 5): their columns on every row, summed apart from the completion.
+  void EvaluateNearLights() {
+    near_sums_ = Eigen::VectorXd::Zero(3 * Eigen::Index(m_));
+    std::vector<uint32_t> lights;
+    for (uint32_t j = 0; j < near_.size(); ++j)
+      if (near_[j]) lights.push_back(j);
+    near_columns_ = lights.size();
+    // In groups of columns so that the entry lists stay small
+    const size_t group = std::max<size_t>(1, (1u << 16) / std::max<uint32_t>(1, m_));
+    for (size_t first = 0; first < lights.size(); first += group) {
+      const size_t last = std::min(lights.size(), first + group);
+      std::vector<uint32_t> rows, cols;
+      for (size_t j = first; j < last; ++j)
+        for (uint32_t r = 0; r < m_; ++r) {
+          rows.push_back(task_.rows[r]);
+          cols.push_back(lights[j]);
+        }
+      std::vector<RGB> values;
+      EvaluateInChunks(matrix_, rows, cols, &values, &out_->counters);
+      for (size_t k = 0; k < values.size(); ++k) {
+        const Eigen::Index r = Eigen::Index(k % m_);
+        for (int c = 0; c < 3; ++c)
+          if (std::isfinite(values[k][c])) near_sums_(3 * r + c) += double(values[k][c]);
+      }
+    }
   }
 
   // Ω: distinct uniform rows (Algorithm 2, DrawRowIndices), never fewer than omega_per_basis·k.
@@ -237,29 +268,29 @@ class SliceSolver {
     NodeColumns nc;
     nc.node = index;
     const uint32_t k = uint32_t(s_.columns_per_node);
-    if (node.count <= k) {
-      nc.exact = true;
-      for (uint32_t i = node.first; i < node.first + node.count; ++i)
-        nc.weighted.emplace_back(order[i], 1.0);
-      return nc;
-    }
     const double lo = prefix_[node.first], hi = prefix_[node.first + node.count];
     const double total = hi - lo;
+    // Near lights are summed exactly elsewhere (their power is 0 in prefix_); a node whose other
+    // lights carry no power contributes nothing but is still listed exactly (cheap: black).
+    if (node.count <= k || !(total > 0)) {
+      nc.exact = true;
+      for (uint32_t i = node.first; i < node.first + node.count; ++i)
+        if (!near_[order[i]]) nc.weighted.emplace_back(order[i], 1.0);
+      return nc;
+    }
     Rng rng(SeedFor(RngStream::kColumnSample, index));
     for (uint32_t d = 0; d < k; ++d) {
       uint32_t pos;
       double pdf;
-      if (total > 0) {
+      {
         const double target = lo + rng.UniformDouble() * total;
         auto it = std::upper_bound(prefix_.begin() + node.first + 1,
                                    prefix_.begin() + node.first + node.count + 1, target);
         pos = uint32_t(std::min<ptrdiff_t>(it - prefix_.begin(), node.first + node.count) - 1);
-        while (pos > node.first && !(prefix_[pos + 1] > prefix_[pos])) --pos;  // rounding
+        // Rounding may land on a light of zero weight (a near one): the nearest with weight
+        while (pos > node.first && !(prefix_[pos + 1] > prefix_[pos])) --pos;
+        while (pos + 1 < node.first + node.count && !(prefix_[pos + 1] > prefix_[pos])) ++pos;
         pdf = (prefix_[pos + 1] - prefix_[pos]) / total;
-        if (!(pdf > 0)) pdf = 1.0 / node.count;
-      } else {  // no light of the node emits: uniform
-        pos = node.first + rng.UniformInt(node.count);
-        pdf = 1.0 / node.count;
       }
       nc.draws.push_back(order[pos]);
       nc.inv_pdf.push_back(1.0 / pdf);
@@ -405,6 +436,7 @@ class SliceSolver {
   const LightingMatrix& matrix_;
   const LightTree& tree_;
   const std::vector<double>& prefix_;
+  const std::vector<uint8_t>& near_;  // per light: summed exactly, never sampled
   const SubMatrixTask& task_;
   const AdaptiveCompletionSettings& s_;
   TaskOutput* out_;
@@ -417,6 +449,8 @@ class SliceSolver {
   std::vector<NodeEstimate> cut_;  // every node evaluated (split ones stay, out of the sums)
   Eigen::VectorXd e_all_;          // Σ e(node) over the current cut
   double cut_energy_ = 0;          // Σ_i (U e_all)_i
+  Eigen::VectorXd near_sums_;      // 3m: the near lights' columns summed
+  uint64_t near_columns_ = 0;
 
   uint64_t columns_full_ = 0, columns_dropped_ = 0, columns_completed_ = 0;
   uint64_t nodes_split_ = 0, omega_redraws_ = 0, speculative_entries_ = 0;
@@ -427,6 +461,35 @@ class AdaptiveCompletionGather final : public GatherMethod {
  public:
   explicit AdaptiveCompletionGather(const AdaptiveCompletionSettings& s) : s_(s) {}
   std::string name() const override { return "adaptive-completion"; }
+
+  // Lights within near_distance × the slice's diagonal of its bounding box (points; both ends of
+  // eye segments). Directional lights are never near.
+  std::vector<uint8_t> NearLights(const LightingMatrix& matrix, const SubMatrixTask& task) const {
+    const LightSet& lights = matrix.lights();
+    std::vector<uint8_t> near(lights.size(), 0);
+    if (!(s_.near_distance > 0)) return near;
+    const ReceiverSet& receivers = matrix.receivers();
+    const size_t npoints = matrix.point_rows();
+    Bounds3 b;
+    for (uint32_t r : task.rows) {
+      if (r < npoints) {
+        b.Extend(receivers.points[r].p);
+      } else {
+        const EyeSegment& seg = receivers.segments[r - npoints];
+        b.Extend(seg.o);
+        b.Extend(seg.o + seg.d * seg.length);
+      }
+    }
+    if (b.Empty()) return near;
+    const float margin = float(s_.near_distance) * Length(b.Diagonal());
+    for (size_t j = 0; j < lights.size(); ++j) {
+      const VirtualLight& L = lights.lights[j];
+      if (L.IsDirectional()) continue;
+      const Vec3 outside = Max(Max(b.lo - L.p, L.p - b.hi), Vec3(0, 0, 0));
+      near[j] = Length(outside) <= margin;
+    }
+    return near;
+  }
   bool needs_light_tree() const override { return true; }
 
   TaskOutput RunTask(const GatherContext& ctx, const SubMatrixTask& task,
@@ -438,11 +501,14 @@ class AdaptiveCompletionGather final : public GatherMethod {
     // Luminance of the lights' power in leaf order, prefix-summed: sampling ∝ intensity
     const LightTree& tree = *ctx.tree;
     const std::vector<uint32_t>& order = tree.order();
+    const std::vector<uint8_t> near = NearLights(ctx.matrix, task);
     std::vector<double> prefix(order.size() + 1, 0.0);
     for (size_t i = 0; i < order.size(); ++i)
       prefix[i + 1] =
-          prefix[i] + std::max(0.0, double(ctx.matrix.lights().lights[order[i]].power.Luminance()));
-    SliceSolver(ctx.matrix, tree, prefix, task, s_, &result).Run();
+          prefix[i] + (near[order[i]] ? 0.0
+                                      : std::max(0.0, double(ctx.matrix.lights().lights[order[i]]
+                                                                 .power.Luminance())));
+    SliceSolver(ctx.matrix, tree, prefix, near, task, s_, &result).Run();
     return result;
   }
 
@@ -460,6 +526,7 @@ std::unique_ptr<GatherMethod> CreateAdaptiveCompletionGather(const OptionMap& pa
   s.beta = params.GetDouble("beta", 0.01, 0.0, 1e6);
   s.omega_per_basis = params.GetDouble("omega_per_basis", 2.0, 0.0, 1e6);
   s.rank_tolerance = params.GetDouble("rank_tolerance", 0.1, 0.0, 1.0);
+  s.near_distance = params.GetDouble("near_distance", 0.0, 0.0, 1e6);
   return std::make_unique<AdaptiveCompletionGather>(s);
 }
 
