@@ -1,7 +1,8 @@
 // `adaptive-completion` (Huo, Wang, Hu, Hua, Bao 2016, "Adaptive matrix column sampling and
 // completion for rendering participating media", Sec. 5, Algorithms 1 and 2). One task = one slice
 // of the plan; the method only asks the LightingMatrix for entries and walks the LightTree, so it
-// works on whatever element types the matrix holds (surface receivers and VPLs today).
+// works on whatever element types the matrix holds (surface points and eye segments; VPLs, medium
+// VPLs and the other light kinds).
 //
 // Per slice (m rows; a column is the 3m-vector of its rows' RGB values, see column_completion.h):
 //  1. Column completion (Sec. 5.1.1, Algorithm 2): Ω holds ⌊ρm⌋ uniformly drawn rows (their three
@@ -35,6 +36,21 @@
 //     node is split until it has at most K lights.
 //  4. Row sums s = U·e_all (Eq. 15), three entries per row; a channel sum the low-rank
 //     reconstruction makes negative is set to 0 (counted in `negative_channels`).
+//  5. Near lights (not in the paper). A light close to a slice's receivers has a spiky column
+//     (1/d² down to the clamp distance on a few rows) that no low-rank basis observed on a uniform Ω
+//     represents: Ω misses the spike, the projection loses it, and Eq. 16 lets it pass because one
+//     column's loss is small next to the whole cut's energy. Summed over hundreds of such columns
+//     the loss is a large negative bias. Measured on volumetric-caustic 32² (2000 lights, METIS
+//     segment slices): ρ=1 σ=0 (every column full) rel_l1 0.013, defaults without this 0.156; the
+//     loss is in the columns completed from Ω, not in the tree sampling (β=0: still 0.143). So the
+//     lights closer than near_distance × the slice's bounding-box diagonal to one of its receivers
+//     are taken out of the tree sampling (power 0 in the sampling prefix, skipped in exact nodes)
+//     and their columns are evaluated on every row and summed exactly. On eye-segment slices every
+//     non-directional light can be near; on surface slices only medium VPLs (an oriented VPL lying
+//     on a receiving surface is damped by the cosines; counting those made cornell-box evaluate 60%
+//     of its elements). Measured on volumetric-caustic 64², 2000 lights: near_distance 0: rel_l2
+//     0.176 / rel_l1 0.072 with 8.1% of the elements; 0.05: 0.037 / 0.024 with 11.6%; 0.1: 0.016 /
+//     0.013 with 15.9%. Scenes without media are unchanged.
 //
 // Exact limit: with rho=1 (Ω = every row), sigma=0 (a column that loses anything on Ω is sampled
 // fully) and beta=0 (every node refined to ≤ K lights, each evaluated once), every light's column
@@ -42,7 +58,7 @@
 // brute force's up to rounding (tests/unit/test_adaptive_completion.cpp).
 //
 // Parameters (--param): columns (K, 10), rho (0.1), sigma (0.005), beta (0.01), omega_per_basis
-// (2; see 1b), rank_tolerance (0.1; see 1d). Randomness: Ω from (seed, stage, task, kRowSample,
+// (2; see 1b), rank_tolerance (0.1; see 1d), near_distance (0.1; 0 turns it off; see 5). Randomness: Ω from (seed, stage, task, kRowSample,
 // draw number), a node's columns from (seed, stage, task, kColumnSample, node index); the slice
 // is processed in one deterministic order and entries are evaluated in fixed chunks, so the bits
 // do not depend on threads or on which worker runs the slice.
@@ -50,7 +66,7 @@
 // added to U: dependent to drop tolerance), columns_completed (from Ω), basis_size, nodes_split,
 // cut_nodes, omega_redraws, speculative_entries (entries evaluated on an Ω redrawn before they
 // were used), negative_channels, observed_residual (per slice, Σ‖l_Ω − U_Ω e‖₁ / Σ‖l_Ω‖₁ over
-// the completed columns).
+// the completed columns), near_columns (near lights' columns evaluated on every row, see 5).
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
@@ -74,7 +90,7 @@ struct AdaptiveCompletionSettings {
   double beta = 0.01;           // Eq. 17
   double omega_per_basis = 2;   // |Ω| ≥ this · k rows (deviation 1b)
   double rank_tolerance = 0.1;  // of U_Ω, relative to its largest pivot (see 1d)
-  double near_distance = 0;     // near lights: within this × the slice's diagonal (see 5)
+  double near_distance = 0.1;   // near lights: within this × the slice's diagonal (see 5)
 };
 
 // Entries per parallel evaluation chunk (several of Embree's 256-ray batches).
@@ -462,12 +478,12 @@ class AdaptiveCompletionGather final : public GatherMethod {
   explicit AdaptiveCompletionGather(const AdaptiveCompletionSettings& s) : s_(s) {}
   std::string name() const override { return "adaptive-completion"; }
 
-  // Lights within near_distance × the slice's diagonal of its bounding box (points; both ends of
-  // eye segments). Directional lights are never near.
+  // Lights closer than near_distance × the slice's bounding-box diagonal to one of its receivers
+  // (a shading point, or the nearest point of an eye segment). Directional lights are never near.
   std::vector<uint8_t> NearLights(const LightingMatrix& matrix, const SubMatrixTask& task) const {
     const LightSet& lights = matrix.lights();
     std::vector<uint8_t> near(lights.size(), 0);
-    if (!(s_.near_distance > 0)) return near;
+    if (!(s_.near_distance > 0) || task.rows.empty()) return near;
     const ReceiverSet& receivers = matrix.receivers();
     const size_t npoints = matrix.point_rows();
     Bounds3 b;
@@ -480,14 +496,30 @@ class AdaptiveCompletionGather final : public GatherMethod {
         b.Extend(seg.o + seg.d * seg.length);
       }
     }
-    if (b.Empty()) return near;
+    const bool segment_slice = task.rows.front() >= npoints;
     const float margin = float(s_.near_distance) * Length(b.Diagonal());
-    for (size_t j = 0; j < lights.size(); ++j) {
+    const float margin2 = margin * margin;
+    tbb::parallel_for(size_t(0), lights.size(), [&](size_t j) {
       const VirtualLight& L = lights.lights[j];
-      if (L.IsDirectional()) continue;
+      // On surfaces, only medium VPLs (an oriented VPL lying on a receiving surface is damped by
+      // the cosines on both sides; a medium VPL beside a surface or in an eye segment's path is not)
+      if (L.IsDirectional() || (!segment_slice && L.kind != VirtualLightKind::kMediumVPL)) return;
       const Vec3 outside = Max(Max(b.lo - L.p, L.p - b.hi), Vec3(0, 0, 0));
-      near[j] = Length(outside) <= margin;
-    }
+      if (LengthSquared(outside) > margin2) return;
+      for (uint32_t r : task.rows) {
+        Vec3 q;
+        if (r < npoints) {
+          q = receivers.points[r].p;
+        } else {
+          const EyeSegment& seg = receivers.segments[r - npoints];
+          q = seg.o + seg.d * std::clamp(Dot(L.p - seg.o, seg.d), 0.f, seg.length);
+        }
+        if (LengthSquared(L.p - q) <= margin2) {
+          near[j] = 1;
+          return;
+        }
+      }
+    });
     return near;
   }
   bool needs_light_tree() const override { return true; }
@@ -526,7 +558,7 @@ std::unique_ptr<GatherMethod> CreateAdaptiveCompletionGather(const OptionMap& pa
   s.beta = params.GetDouble("beta", 0.01, 0.0, 1e6);
   s.omega_per_basis = params.GetDouble("omega_per_basis", 2.0, 0.0, 1e6);
   s.rank_tolerance = params.GetDouble("rank_tolerance", 0.1, 0.0, 1.0);
-  s.near_distance = params.GetDouble("near_distance", 0.0, 0.0, 1e6);
+  s.near_distance = params.GetDouble("near_distance", 0.1, 0.0, 1e6);
   return std::make_unique<AdaptiveCompletionGather>(s);
 }
 

@@ -304,7 +304,7 @@ size_t RefineSegmentSlices(const Scene& scene, ReceiverSet* receivers,
     const RGB t1 = med.Transmittance({seg.o + seg.d * half, seg.d, half}, rng);
     const SegmentFeatures halves[2] = {HalfFeatures(f[s], 0, t0.Average()),
                                        HalfFeatures(f[s], 1, t1.Average())};
-    // Parts around the segment, its own first
+    // The segment's part and those of its graph neighbours
     std::vector<uint32_t> candidates{p[s]};
     for (idx_t e = begin; e < end; ++e) candidates.push_back(p[size_t(g.adjncy[size_t(e)])]);
     candidates = SortedUnique(std::move(candidates));

@@ -28,7 +28,8 @@ struct SegmentSlicingOptions {
   float boundary_fraction = 0.125f;  // B = 1/8 of the scene diagonal (Eq. 10)
   float kappa = 0.5f;              // Eq. 11
   float pixel_sigma = 4.f;         // σ of the pixel term (pixels)
-  bool refine = true;              // split boundary segments (RefineSegmentSlices)
+  bool refine = true;              // split boundary segments (RefineSegmentSlices); the plan's
+                                   // default is off (param segment_refine)
   uint64_t seed = 0;
 };
 
