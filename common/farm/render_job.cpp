@@ -8,6 +8,7 @@
 #include "common/image/film.h"
 #include "common/image/filter.h"
 #include "common/lights/light_generation.h"
+#include "common/receivers/segment_slicing.h"
 #include "common/receivers/slicing.h"
 #include "common/scene/scene_description.h"
 
@@ -80,6 +81,19 @@ Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, Ph
   // 16) and samples per segment element.
   const int segments_per_ray = int(params.GetInt("segments_per_ray", 16, 0, 1024));
   plan.matrix_options.segment_samples = int(params.GetInt("segment_samples", 4, 1, 64));
+  // Eye-segment slices (Huo 2016, Sec. 4; segment_slicing.h): K = 0.008 × eye rays, clamped to
+  // an average of [5/8, 5/4] × segment_rows_per_slice segments per slice (500–1000 for the
+  // default 800, the range the paper reports); segment_refine=1 splits segments across slice
+  // boundaries (off by default: on volumetric-caustic it changed adaptive-completion's error by
+  // less than its noise with near lights, and made it worse without; docs/rendering.md).
+  SegmentSlicingOptions segment_slicing;
+  {
+    const size_t target = size_t(params.GetInt("segment_rows_per_slice", 800, 1, 1 << 24));
+    segment_slicing.min_rows_per_slice = std::max<size_t>(1, target * 5 / 8);
+    segment_slicing.max_rows_per_slice = std::max<size_t>(1, target * 5 / 4);
+    segment_slicing.refine = params.GetBool("segment_refine", false);
+    segment_slicing.seed = settings.seed;
+  }
   // `auto` resolves once the scene's effects are known (below); until then only its own
   // parameter can be checked, and a typo in the others is reported after the scene is built.
   const bool auto_method = settings.method == kAutoMethod;
@@ -127,6 +141,9 @@ Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, Ph
   ropt.segments_per_ray = media_rows ? segments_per_ray : -1;
   plan.receivers = GenerateReceivers(scene, filter_sampler, ropt);
   timer.End("receivers");
+  // Segment slices before anything refers to the segments: refinement may split some of them.
+  std::vector<Slice> segment_slices = SliceSegments(scene, &plan.receivers, segment_slicing);
+  if (!segment_slices.empty()) timer.End("segment_slicing");
 
   LightGenerationOptions lopt;
   lopt.target_lights = settings.lights;
@@ -154,15 +171,17 @@ Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, Ph
     task.neighbors = std::move(slice.neighbors);
     plan.tasks.push_back(std::move(task));
   }
-  // Eye-segment rows (after the point rows): tasks of consecutive segments, which are in pixel
-  // order and so spatially coherent.
+  // Eye-segment rows (after the point rows): the segment slices, their neighbours renumbered
+  // to task ids.
   const size_t npoints = plan.matrix->point_rows();
-  for (size_t first = 0; first < plan.receivers.segments.size(); first += slicing.rows_per_slice) {
+  const uint32_t first_segment_task = uint32_t(plan.tasks.size());
+  for (Slice& slice : segment_slices) {
     SubMatrixTask task;
     task.task_id = uint32_t(plan.tasks.size());
     task.seed = settings.seed;
-    size_t last = std::min(plan.receivers.segments.size(), first + slicing.rows_per_slice);
-    for (size_t s = first; s < last; ++s) task.rows.push_back(uint32_t(npoints + s));
+    task.rows.reserve(slice.rows.size());
+    for (uint32_t s : slice.rows) task.rows.push_back(uint32_t(npoints + s));
+    for (uint32_t n : slice.neighbors) task.neighbors.push_back(first_segment_task + n);
     plan.tasks.push_back(std::move(task));
   }
   timer.End("plan");

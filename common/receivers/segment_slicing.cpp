@@ -1,0 +1,445 @@
+// Eye-segment slicing (Huo 2016, Sec. 4): similarity graph, METIS K-way partition, boundary
+// refinement, slice neighbours. See segment_slicing.h for the equations and deviations.
+#include "common/receivers/segment_slicing.h"
+
+#include <metis.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+#include "common/scene/phase.h"
+#include "common/util/rng.h"
+
+namespace lightfarm {
+
+namespace {
+
+// A small 3-D kd-tree for k-nearest-neighbour queries over points (implicit, balanced: the node
+// of a range is its middle element after nth_element on the widest axis). Ties by point id, so
+// queries are deterministic.
+class PointKdTree {
+ public:
+  explicit PointKdTree(std::vector<Vec3> points) : points_(std::move(points)) {
+    order_.resize(points_.size());
+    for (uint32_t i = 0; i < order_.size(); ++i) order_[i] = i;
+    axis_.assign(points_.size(), 0);
+    Build(0, order_.size());
+  }
+
+  // The k nearest points to q as (squared distance, id), nearest first.
+  std::vector<std::pair<float, uint32_t>> Nearest(Vec3 q, size_t k) const {
+    std::vector<std::pair<float, uint32_t>> heap;  // max-heap of the best k so far
+    if (k == 0) return heap;
+    heap.reserve(k + 1);
+    Search(0, order_.size(), q, k, &heap);
+    std::sort_heap(heap.begin(), heap.end());
+    return heap;
+  }
+
+ private:
+  void Build(size_t lo, size_t hi) {
+    if (hi - lo <= 1) return;
+    Vec3 bmin(kInfinity, kInfinity, kInfinity), bmax(-kInfinity, -kInfinity, -kInfinity);
+    for (size_t i = lo; i < hi; ++i)
+      for (int a = 0; a < 3; ++a) {
+        bmin[a] = std::min(bmin[a], points_[order_[i]][a]);
+        bmax[a] = std::max(bmax[a], points_[order_[i]][a]);
+      }
+    int axis = 0;
+    for (int a = 1; a < 3; ++a)
+      if (bmax[a] - bmin[a] > bmax[axis] - bmin[axis]) axis = a;
+    const size_t mid = lo + (hi - lo) / 2;
+    std::nth_element(order_.begin() + ptrdiff_t(lo), order_.begin() + ptrdiff_t(mid),
+                     order_.begin() + ptrdiff_t(hi), [&](uint32_t a, uint32_t b) {
+                       const float pa = points_[a][axis], pb = points_[b][axis];
+                       return pa != pb ? pa < pb : a < b;
+                     });
+    axis_[mid] = uint8_t(axis);
+    Build(lo, mid);
+    Build(mid + 1, hi);
+  }
+
+  void Search(size_t lo, size_t hi, Vec3 q, size_t k,
+              std::vector<std::pair<float, uint32_t>>* heap) const {
+    if (lo >= hi) return;
+    const size_t mid = lo + (hi - lo) / 2;
+    const uint32_t id = order_[mid];
+    const std::pair<float, uint32_t> cand(LengthSquared(points_[id] - q), id);
+    if (heap->size() < k) {
+      heap->push_back(cand);
+      std::push_heap(heap->begin(), heap->end());
+    } else if (cand < heap->front()) {
+      std::pop_heap(heap->begin(), heap->end());
+      heap->back() = cand;
+      std::push_heap(heap->begin(), heap->end());
+    }
+    if (hi - lo == 1) return;
+    const int axis = axis_[mid];
+    const float diff = q[axis] - points_[id][axis];
+    const bool left_first = diff < 0;
+    // Near side first; the far side only if the splitting plane is within the k-th distance
+    // (<= keeps equal-distance points with smaller ids reachable).
+    if (left_first) Search(lo, mid, q, k, heap); else Search(mid + 1, hi, q, k, heap);
+    if (heap->size() < k || diff * diff <= heap->front().first) {
+      if (left_first) Search(mid + 1, hi, q, k, heap); else Search(lo, mid, q, k, heap);
+    }
+  }
+
+  std::vector<Vec3> points_;
+  std::vector<uint32_t> order_;
+  std::vector<uint8_t> axis_;
+};
+
+// The direction where an HG phase function of a segment travelling along d is largest, when it
+// has one (g = 0: isotropic, every direction).
+Vec3 PhaseMaximumDirection(const SegmentFeatures& s) { return s.g >= 0 ? s.d : -s.d; }
+
+// Eq. 11's d(x_i, x_j): the larger relative difference of the two phase functions at the
+// directions where either is largest. Normalised by the larger of the two values (symmetric, in
+// [0, 1]); the paper divides by p_i, which is unbounded when p_j ≫ p_i.
+float PhaseDifference(const SegmentFeatures& a, const SegmentFeatures& b) {
+  float worst = 0;
+  for (const Vec3 w : {PhaseMaximumDirection(a), PhaseMaximumDirection(b)}) {
+    const float pa = HenyeyGreenstein(Dot(w, a.d), a.g);
+    const float pb = HenyeyGreenstein(Dot(w, b.d), b.g);
+    const float denom = std::max(pa, pb);
+    if (denom > 0) worst = std::max(worst, std::abs(pa - pb) / denom);
+  }
+  return std::clamp(worst, 0.f, 1.f);
+}
+
+SegmentFeatures HalfFeatures(const SegmentFeatures& s, int half, float tau) {
+  SegmentFeatures h = s;
+  const Vec3 mid = (s.x0 + s.x1) * 0.5f;
+  if (half == 0) h.x1 = mid; else h.x0 = mid;
+  h.tau = tau;
+  return h;
+}
+
+std::vector<uint32_t> SortedUnique(std::vector<uint32_t> v) {
+  std::sort(v.begin(), v.end());
+  v.erase(std::unique(v.begin(), v.end()), v.end());
+  return v;
+}
+
+// Symmetric adjacency (CSR) of the k-nearest-segment graph.
+struct SegmentGraph {
+  std::vector<idx_t> xadj, adjncy, adjwgt;
+};
+
+SegmentGraph BuildGraph(const std::vector<SegmentFeatures>& f, const SegmentSimilarityParams& sp,
+                        size_t k) {
+  const size_t n = f.size();
+  std::vector<Vec3> endpoints(2 * n);
+  for (size_t s = 0; s < n; ++s) {
+    endpoints[2 * s] = f[s].x0;
+    endpoints[2 * s + 1] = f[s].x1;
+  }
+  const PointKdTree tree(std::move(endpoints));
+  // Each segment's k nearest other segments by the nearer of their endpoints to either of its
+  // own (Sec. 4.2.1: "nearest start or end points of segments in a point KD-tree").
+  std::vector<std::vector<uint32_t>> near(n);
+  tbb::parallel_for(size_t(0), n, [&](size_t s) {
+    std::vector<std::pair<float, uint32_t>> cand;
+    for (const Vec3 q : {f[s].x0, f[s].x1})
+      for (const auto& [d2, id] : tree.Nearest(q, 2 * k + 4))
+        if (id / 2 != s) cand.emplace_back(d2, id / 2);
+    std::sort(cand.begin(), cand.end());
+    std::vector<uint32_t>& out = near[s];
+    for (const auto& [d2, t] : cand) {
+      if (std::find(out.begin(), out.end(), t) != out.end()) continue;
+      out.push_back(t);
+      if (out.size() == k) break;
+    }
+  });
+  // Symmetrise: an edge when either end chose the other.
+  std::vector<std::vector<uint32_t>> adj(n);
+  for (size_t s = 0; s < n; ++s)
+    for (uint32_t t : near[s]) {
+      adj[s].push_back(t);
+      adj[t].push_back(uint32_t(s));
+    }
+  SegmentGraph g;
+  g.xadj.assign(n + 1, 0);
+  for (size_t s = 0; s < n; ++s) {
+    adj[s] = SortedUnique(std::move(adj[s]));
+    g.xadj[s + 1] = g.xadj[s] + idx_t(adj[s].size());
+  }
+  g.adjncy.resize(size_t(g.xadj[n]));
+  g.adjwgt.resize(size_t(g.xadj[n]));
+  tbb::parallel_for(size_t(0), n, [&](size_t s) {
+    size_t e = size_t(g.xadj[s]);
+    for (uint32_t t : adj[s]) {
+      // METIS takes integer weights: Eq. 8's similarity ∈ [0, 4] in thousandths, at least 1 so
+      // that every edge still ties its ends a little.
+      const float w = SegmentSimilarity(f[s], f[t], sp).Sum();
+      g.adjncy[e] = idx_t(t);
+      g.adjwgt[e] = idx_t(1 + std::lround(1000.f * w));
+      ++e;
+    }
+  });
+  return g;
+}
+
+SegmentSimilarityParams SimilarityParams(float scene_diagonal, const SegmentSlicingOptions& o) {
+  SegmentSimilarityParams p;
+  p.B = std::max(o.boundary_fraction * scene_diagonal, 1e-6f);
+  p.kappa = o.kappa;
+  p.pixel_sigma = o.pixel_sigma;
+  return p;
+}
+
+}  // namespace
+
+SegmentSimilarityTerms SegmentSimilarity(const SegmentFeatures& a, const SegmentFeatures& b,
+                                         const SegmentSimilarityParams& params) {
+  SegmentSimilarityTerms t;
+  // Eq. 10
+  const float B = params.B;
+  t.spatial = std::max(0.f, B - Distance(a.x0, b.x0) - Distance(a.x1, b.x1)) / B;
+  // Eq. 11 (direction and medium are constant along a segment, so d(x0i, x0j) = d(x1i, x1j))
+  if (a.medium == b.medium) t.directional = params.kappa * 2.f * (1.f - PhaseDifference(a, b));
+  // Eq. 12
+  t.transmittance = 1.f - std::min(1.f, std::abs(a.tau - b.tau));
+  // Pixel term (Gaussian in image space, see the header)
+  const float r2 = Sqr(a.px - b.px) + Sqr(a.py - b.py);
+  t.pixel = std::exp(-r2 / (2.f * std::max(params.pixel_sigma, 1e-6f)));
+  return t;
+}
+
+std::vector<SegmentFeatures> ComputeSegmentFeatures(const Scene& scene, const ReceiverSet& receivers,
+                                                    uint64_t seed) {
+  std::vector<SegmentFeatures> f(receivers.segments.size());
+  const int width = std::max(1, receivers.width);
+  tbb::parallel_for(size_t(0), f.size(), [&](size_t s) {
+    const EyeSegment& seg = receivers.segments[s];
+    SegmentFeatures& out = f[s];
+    out.x0 = seg.o;
+    out.x1 = seg.o + seg.d * seg.length;
+    out.d = seg.d;
+    out.medium = seg.medium;
+    const uint32_t pixel = receivers.samples[seg.sample].pixel;
+    out.px = float(pixel % uint32_t(width));
+    out.py = float(pixel / uint32_t(width));
+    if (seg.medium >= 0) {
+      const Medium& med = scene.media()[size_t(seg.medium)];
+      out.g = med.g();
+      Rng rng(HashSeed({seed, uint64_t(RngStream::kSlicing), 1, s}));
+      out.tau = med.Transmittance({seg.o, seg.d, seg.length}, rng).Average();
+    }
+  });
+  return f;
+}
+
+size_t SegmentSliceCount(size_t segments, size_t eye_rays, const SegmentSlicingOptions& options) {
+  if (segments == 0) return 0;
+  const size_t min_rows = std::max<size_t>(1, options.min_rows_per_slice);
+  const size_t max_rows = std::max(min_rows, options.max_rows_per_slice);
+  // Huo 2016, Sec. 4.3: K = 0.008 × eye rays, kept within [n / max_rows, n / min_rows]
+  const size_t by_rays = size_t(std::llround(options.slices_per_eye_ray * double(eye_rays)));
+  const size_t lo = (segments + max_rows - 1) / max_rows;
+  const size_t hi = std::max<size_t>(1, segments / min_rows);
+  return std::clamp(std::clamp(by_rays, lo, std::max(lo, hi)), size_t(1), segments);
+}
+
+std::vector<uint32_t> PartitionSegments(const std::vector<SegmentFeatures>& features, size_t parts,
+                                        float scene_diagonal, const SegmentSlicingOptions& options) {
+  const size_t n = features.size();
+  std::vector<uint32_t> part(n, 0);
+  if (n == 0 || parts <= 1) return part;
+  parts = std::min(parts, n);
+  SegmentGraph g = BuildGraph(features, SimilarityParams(scene_diagonal, options),
+                              std::max<size_t>(1, options.graph_neighbors));
+  idx_t nvtxs = idx_t(n), ncon = 1, nparts = idx_t(parts), objval = 0;
+  idx_t metis_options[METIS_NOPTIONS];
+  METIS_SetDefaultOptions(metis_options);
+  metis_options[METIS_OPTION_NUMBERING] = 0;
+  // METIS's own generator, seeded from the job seed: the partition is a function of the graph
+  // and the seed only (METIS 5 is serial)
+  metis_options[METIS_OPTION_SEED] =
+      idx_t(HashSeed({options.seed, uint64_t(RngStream::kSlicing), 2}) & 0x3fffffff);
+  std::vector<idx_t> result(n, 0);
+  const int status = METIS_PartGraphKway(&nvtxs, &ncon, g.xadj.data(), g.adjncy.data(), nullptr,
+                                         nullptr, g.adjwgt.data(), &nparts, nullptr, nullptr,
+                                         metis_options, &objval, result.data());
+  if (status != METIS_OK)
+    throw std::runtime_error("segment slicing: METIS_PartGraphKway failed (status " +
+                             std::to_string(status) + ")");
+  for (size_t s = 0; s < n; ++s) part[s] = uint32_t(result[s]);
+  return part;
+}
+
+size_t RefineSegmentSlices(const Scene& scene, ReceiverSet* receivers,
+                           std::vector<SegmentFeatures>* features, std::vector<uint32_t>* part,
+                           float scene_diagonal, const SegmentSlicingOptions& options) {
+  std::vector<SegmentFeatures>& f = *features;
+  std::vector<uint32_t>& p = *part;
+  const size_t n = f.size();
+  if (n < 2) return 0;
+  const SegmentSimilarityParams sp = SimilarityParams(scene_diagonal, options);
+  const SegmentGraph g = BuildGraph(f, sp, std::max<size_t>(1, options.graph_neighbors));
+
+  // Decisions read only the partition before refinement: independent per segment.
+  struct Split {
+    bool split = false;
+    uint32_t part[2] = {0, 0};
+    RGB first_half_transmittance;
+    float tau[2] = {1, 1};
+  };
+  std::vector<Split> splits(n);
+  tbb::parallel_for(size_t(0), n, [&](size_t s) {
+    const EyeSegment& seg = receivers->segments[s];
+    const idx_t begin = g.xadj[s], end = g.xadj[s + 1];
+    bool boundary = false;
+    for (idx_t e = begin; e < end; ++e) boundary |= p[size_t(g.adjncy[size_t(e)])] != p[s];
+    if (!boundary || seg.medium < 0 || !(seg.length > 0)) return;
+    const Medium& med = scene.media()[size_t(seg.medium)];
+    Rng rng(HashSeed({options.seed, uint64_t(RngStream::kSlicing), 3, s}));
+    const float half = 0.5f * seg.length;
+    const RGB t0 = med.Transmittance({seg.o, seg.d, half}, rng);
+    const RGB t1 = med.Transmittance({seg.o + seg.d * half, seg.d, half}, rng);
+    const SegmentFeatures halves[2] = {HalfFeatures(f[s], 0, t0.Average()),
+                                       HalfFeatures(f[s], 1, t1.Average())};
+    // The segment's part and those of its graph neighbours
+    std::vector<uint32_t> candidates{p[s]};
+    for (idx_t e = begin; e < end; ++e) candidates.push_back(p[size_t(g.adjncy[size_t(e)])]);
+    candidates = SortedUnique(std::move(candidates));
+    uint32_t best[2] = {p[s], p[s]};
+    for (int h = 0; h < 2; ++h) {
+      float best_affinity = -1;
+      for (uint32_t c : candidates) {
+        // Mean similarity of the half to the segment's neighbours in part c
+        float sum = 0;
+        int count = 0;
+        for (idx_t e = begin; e < end; ++e) {
+          const size_t t = size_t(g.adjncy[size_t(e)]);
+          if (p[t] != c) continue;
+          sum += SegmentSimilarity(halves[h], f[t], sp).Sum();
+          ++count;
+        }
+        if (count == 0) continue;
+        const float affinity = sum / float(count);
+        // Ties keep the segment's own part (candidates are sorted, so compare explicitly)
+        if (affinity > best_affinity || (affinity == best_affinity && c == p[s])) {
+          best_affinity = affinity;
+          best[h] = c;
+        }
+      }
+    }
+    Split& out = splits[s];
+    out.part[0] = best[0];
+    out.part[1] = best[1];
+    out.split = best[0] != best[1];
+    out.first_half_transmittance = t0;
+    out.tau[0] = halves[0].tau;
+    out.tau[1] = halves[1].tau;
+  });
+
+  // Rebuild the segment list in the same (sample) order, halves in place of split segments.
+  const std::vector<EyeSegment> old_segments = std::move(receivers->segments);
+  const std::vector<SegmentFeatures> old_features = std::move(f);
+  const std::vector<uint32_t> old_part = std::move(p);
+  std::vector<EyeSegment>& segs = receivers->segments;
+  segs.clear();
+  f.clear();
+  p.clear();
+  size_t split_count = 0;
+  for (size_t s = 0; s < n; ++s) {
+    const Split& sp_s = splits[s];
+    if (!sp_s.split) {
+      segs.push_back(old_segments[s]);
+      f.push_back(old_features[s]);
+      // Not split: the segment keeps its part (even when both halves prefer another one: moving
+      // whole segments would unbalance the partition METIS chose)
+      p.push_back(old_part[s]);
+      continue;
+    }
+    ++split_count;
+    const EyeSegment& seg = old_segments[s];
+    EyeSegment a = seg, b = seg;
+    a.length = b.length = 0.5f * seg.length;
+    b.o = seg.o + seg.d * a.length;
+    b.throughput = seg.throughput * sp_s.first_half_transmittance;  // unbiased estimate
+    segs.push_back(a);
+    segs.push_back(b);
+    f.push_back(HalfFeatures(old_features[s], 0, sp_s.tau[0]));
+    f.push_back(HalfFeatures(old_features[s], 1, sp_s.tau[1]));
+    p.push_back(sp_s.part[0]);
+    p.push_back(sp_s.part[1]);
+  }
+  // Each sample's segments stay contiguous and in order: recompute their ranges.
+  for (CameraSample& cs : receivers->samples) {
+    cs.first_segment = -1;
+    cs.segment_count = 0;
+  }
+  for (size_t s = 0; s < segs.size(); ++s) {
+    CameraSample& cs = receivers->samples[segs[s].sample];
+    if (cs.segment_count == 0) cs.first_segment = int32_t(s);
+    ++cs.segment_count;
+  }
+  return split_count;
+}
+
+std::vector<Slice> SliceSegments(const Scene& scene, ReceiverSet* receivers,
+                                 const SegmentSlicingOptions& options) {
+  if (receivers->segments.empty()) return {};
+  const float diagonal = Length(scene.bounds().Diagonal());
+  size_t eye_rays = 0;
+  for (const CameraSample& cs : receivers->samples) eye_rays += cs.segment_count > 0;
+  std::vector<SegmentFeatures> features = ComputeSegmentFeatures(scene, *receivers, options.seed);
+  const size_t parts = SegmentSliceCount(features.size(), eye_rays, options);
+  std::vector<uint32_t> part = PartitionSegments(features, parts, diagonal, options);
+  if (options.refine && parts > 1)
+    RefineSegmentSlices(scene, receivers, &features, &part, diagonal, options);
+
+  // Slices in part order, empty parts (METIS may leave some) dropped
+  std::vector<Slice> by_part(parts);
+  for (size_t s = 0; s < part.size(); ++s) by_part[part[s]].rows.push_back(uint32_t(s));
+  std::vector<Slice> slices;
+  for (Slice& sl : by_part)
+    if (!sl.rows.empty()) slices.push_back(std::move(sl));
+  const size_t count = slices.size();
+
+  // Centroids in 6-D: mean midpoint, mean direction scaled as SliceReceivers scales normals
+  const float w = 0.25f * diagonal;
+  std::vector<std::array<float, 6>> centroid(count);
+  tbb::parallel_for(size_t(0), count, [&](size_t c) {
+    Slice& sl = slices[c];
+    std::array<double, 6> sum{};
+    for (uint32_t r : sl.rows) {
+      const Vec3 m = (features[r].x0 + features[r].x1) * 0.5f;
+      const Vec3 d = features[r].d;
+      for (int a = 0; a < 3; ++a) {
+        sum[size_t(a)] += double(m[a]);
+        sum[size_t(a) + 3] += double(d[a]);
+      }
+    }
+    const double inv = 1.0 / double(sl.rows.size());
+    sl.center = Vec3(float(sum[0] * inv), float(sum[1] * inv), float(sum[2] * inv));
+    const Vec3 mean_d(float(sum[3] * inv), float(sum[4] * inv), float(sum[5] * inv));
+    const float len = Length(mean_d);
+    sl.normal = len > 1e-6f ? mean_d / len : Vec3(0, 0, 0);
+    centroid[c] = {sl.center.x, sl.center.y, sl.center.z, mean_d.x * w, mean_d.y * w, mean_d.z * w};
+  });
+  const size_t k = std::min(options.slice_neighbors, count - 1);
+  if (k > 0) {
+    tbb::parallel_for(size_t(0), count, [&](size_t c) {
+      std::vector<std::pair<float, uint32_t>> dist;
+      for (size_t t = 0; t < count; ++t) {
+        if (t == c) continue;
+        float d2 = 0;
+        for (size_t a = 0; a < 6; ++a) d2 += Sqr(centroid[c][a] - centroid[t][a]);
+        dist.emplace_back(d2, uint32_t(t));
+      }
+      std::partial_sort(dist.begin(), dist.begin() + ptrdiff_t(k), dist.end());
+      for (size_t j = 0; j < k; ++j) slices[c].neighbors.push_back(dist[j].second);
+    });
+  }
+  return slices;
+}
+
+}  // namespace lightfarm
