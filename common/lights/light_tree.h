@@ -2,7 +2,8 @@
 // lights, inner nodes cluster lights of one kind by position (and orientation), each node keeps
 // its bounds, total intensity and a representative light chosen with probability ∝ intensity.
 // Separate trees per light kind (area/surface VPLs are oriented, points and medium VPLs are not,
-// directional lights cluster by direction); `roots()` lists them. Used by lightcuts, lightslice,
+// directional lights cluster by direction, VRLs by midpoint and direction with bounds covering
+// both end points); `roots()` lists them. Used by lightcuts, lightslice,
 // sparse-completion (the global cut) and adaptive-completion.
 #pragma once
 
