@@ -9,6 +9,7 @@
 #include <cmath>
 #include <functional>
 #include <memory>
+#include <string>
 
 #include "common/farm/render_job.h"
 #include "common/farm/serialize.h"
@@ -376,6 +377,98 @@ TEST(VrlGeneration, GatherMethodsHandleVrlColumns) {
   RenderOutput lc = RenderCaustic("lightcuts", {});
   EXPECT_EQ(lc.stats["lights"]["vrl"].get<uint64_t>(), 0u);
   ExpectFiniteNonBlack(lc);
+}
+
+// --- VRLs and medium VPLs estimate the same light ------------------------------------------------
+
+// A point light inside a homogeneous fog sphere above a diffuse floor (maxdepth 3). Over
+// several light-generation seeds, the light that the medium lights (VRL columns with
+// media_lights=vrl, medium-VPL columns with vpl) send to a floor point and to an eye segment
+// has the same mean: both are unbiased estimates of single scattering off the particle flux.
+TEST(VrlConsistency, VrlsAndMediumVplsAgreeOnAverage) {
+  SceneDescription desc = ParseSceneString(
+      "Integrator \"volpath\" \"integer maxdepth\" [3]\n"
+      "LookAt 0 0 10  0 0 0  0 1 0\nCamera \"perspective\"\nWorldBegin\n"
+      "MakeNamedMedium \"fog\" \"string type\" \"homogeneous\" \"rgb sigma_a\" [0.1 0.1 0.1]\n"
+      "  \"rgb sigma_s\" [0.6 0.6 0.6] \"float g\" [0.3]\n"
+      "AttributeBegin\nMediumInterface \"fog\" \"\"\nMaterial \"interface\"\n"
+      "Shape \"sphere\" \"float radius\" [3]\nAttributeEnd\n"
+      "AttributeBegin\nMediumInterface \"\" \"fog\"\n"
+      "LightSource \"point\" \"rgb I\" [5 5 5] \"point3 from\" [0 1 0]\nAttributeEnd\n"
+      "Material \"diffuse\" \"rgb reflectance\" [0.5 0.5 0.5]\n"
+      "Shape \"trianglemesh\" \"point3 P\" [-2 -1 -2  2 -1 -2  2 -1 2  -2 -1 2]\n"
+      "  \"integer indices\" [0 2 1 0 3 2]\n",
+      "fog-light.pbrt", "/tmp");
+  std::unique_ptr<Scene> scene = Scene::Build(desc, SceneBuildOptions{});
+  const auto& mats = scene->materials();
+  uint32_t diffuse = 0;
+  while (mats[diffuse].type != MaterialType::kDiffuse) ++diffuse;
+  ReceiverSet receivers;
+  receivers.width = receivers.height = 1;
+  receivers.samples.resize(1);
+  ShadingPoint sp = Receiver(diffuse);
+  sp.p = {0.5f, -1, 0.3f};
+  receivers.points.push_back(sp);
+  EyeSegment seg;
+  seg.o = {-2, 0.5f, 1};
+  seg.d = Normalize(Vec3{1, -0.1f, -0.2f});
+  seg.length = 3.5f;
+  seg.throughput = RGB(1.f);
+  seg.medium = 0;
+  seg.depth = 1;
+  receivers.segments.push_back(seg);
+  const int seeds = 32;
+  // [mode][row]: per-seed sums of the medium lights' columns.
+  std::array<std::array<std::vector<double>, 2>, 2> sums;
+  for (int mode = 0; mode < 2; ++mode) {
+    for (int seed = 0; seed < seeds; ++seed) {
+      LightGenerationOptions opt;
+      opt.target_lights = 8000;
+      opt.max_depth = 3;
+      opt.seed = uint64_t(seed);
+      opt.medium_lights = mode == 0 ? MediumLights::kVRL : MediumLights::kVPL;
+      LightSet lights = GenerateLights(*scene, opt);
+      ASSERT_GT(mode == 0 ? lights.stats.vrls : lights.stats.medium_vpls, 100u);
+      MatrixOptions mopt;
+      mopt.clamp = 0.002f;  // tiny: the two kinds' clamp losses differ, but negligibly here
+      mopt.segment_samples = 4;
+      LightingMatrix m(*scene, receivers, lights, mopt);
+      MatrixCounters c;
+      std::vector<RGB> row(m.cols());
+      for (uint32_t r = 0; r < 2; ++r) {
+        m.Row(r, row, &c);
+        double sum = 0;
+        for (size_t j = 0; j < row.size(); ++j) {
+          VirtualLightKind kind = lights.lights[j].kind;
+          if (kind == VirtualLightKind::kVRL || kind == VirtualLightKind::kMediumVPL)
+            sum += double(row[j].g);
+        }
+        sums[size_t(mode)][r].push_back(sum);
+      }
+    }
+  }
+  for (size_t r = 0; r < 2; ++r) {
+    SCOPED_TRACE(r == 0 ? "surface point" : "eye segment");
+    double mean[2], var_of_mean[2];
+    for (size_t mode = 0; mode < 2; ++mode) {
+      const std::vector<double>& v = sums[mode][r];
+      double s = 0, s2 = 0;
+      for (double x : v) {
+        s += x;
+        s2 += x * x;
+      }
+      mean[mode] = s / double(v.size());
+      var_of_mean[mode] = std::max(0.0, s2 / double(v.size()) - mean[mode] * mean[mode]) /
+                          double(v.size() - 1);
+    }
+    const double se = std::sqrt(var_of_mean[0] + var_of_mean[1]);
+    ::testing::Test::RecordProperty(r == 0 ? "point_vrl_vpl_se" : "segment_vrl_vpl_se",
+                                    std::to_string(mean[0]) + " " + std::to_string(mean[1]) + " " +
+                                        std::to_string(se));
+    EXPECT_GT(mean[0], 0.0);
+    EXPECT_NEAR(mean[0], mean[1], 4 * se) << "vrl " << mean[0] << " vpl " << mean[1] << " se " << se;
+    EXPECT_LT(se, 0.04 * mean[1]) << "vrl " << mean[0] << " vpl " << mean[1] << " se " << se;
+  }
 }
 
 // --- Light tree and serialization ---------------------------------------------------------------
