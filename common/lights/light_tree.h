@@ -15,7 +15,7 @@
 namespace lightfarm {
 
 struct LightTreeNode {
-  Bounds3 bounds;        // positions (for directional lights: of their unit directions)
+  Bounds3 bounds;        // positions (directional lights: their unit directions; VRLs: both ends)
   Vec3 cone_axis{0, 0, 1};
   float cone_cos = -1;   // normals lie within acos(cone_cos) of cone_axis; -1: unbounded
   RGB intensity;         // Σ power of the lights below (the cluster's total power)
