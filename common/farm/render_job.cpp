@@ -94,6 +94,12 @@ Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, Ph
     segment_slicing.refine = params.GetBool("segment_refine", false);
     segment_slicing.seed = settings.seed;
   }
+  // Lights particle paths leave in media: VRLs (Novák 2012; default) or medium VPLs.
+  const std::string media_lights_name = params.GetString("media_lights", "vrl");
+  if (media_lights_name != "vrl" && media_lights_name != "vpl")
+    throw OptionError("--param media_lights=" + media_lights_name + ": expected vrl or vpl");
+  const MediumLights media_lights =
+      media_lights_name == "vrl" ? MediumLights::kVRL : MediumLights::kVPL;
   // `auto` resolves once the scene's effects are known (below); until then only its own
   // parameter can be checked, and a typo in the others is reported after the scene is built.
   const bool auto_method = settings.method == kAutoMethod;
@@ -150,7 +156,7 @@ Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, Ph
   lopt.direct_fraction = direct_fraction;
   lopt.max_depth = scene.hints().max_depth;
   lopt.seed = settings.seed;
-  lopt.medium_lights = media_rows;
+  lopt.medium_lights = media_rows ? media_lights : MediumLights::kNone;
   plan.lights = GenerateLights(scene, lopt);
   timer.End("lights");
   if (plan.method->needs_light_tree()) {
@@ -267,7 +273,7 @@ nlohmann::json MakeStats(const Plan& plan, const RenderSettings& settings,
   s["filter"] = plan.scene->hints().filter_type;
   s["effects"] = plan.effects.Names();
   s["lights"] = {{"vpl", ls.area_vpls + ls.surface_vpls},
-                 {"vrl", 0},
+                 {"vrl", ls.vrls},
                  {"medium_vpl", ls.medium_vpls},
                  {"total", plan.lights.size()},
                  {"requested", settings.lights},

@@ -67,7 +67,7 @@ std::vector<uint32_t> GetIndices(ByteReader& r) {
   return v;
 }
 
-constexpr size_t kLightBytes = 4 * 3 * 5 + 4 + 1 + 1 + 1 + 1 + 4 + 4 + 1 + 4 + 2;
+constexpr size_t kLightBytes = 4 * 3 * 5 + 4 + 1 + 1 + 1 + 1 + 4 + 4 + 1 + 4 + 2 + 4;
 constexpr size_t kPointBytes = 4 * 3 * 5 + 4 + 4 + 1 + 2 + 2;
 constexpr size_t kSampleBytes = 4 + 4 + 12 + 4 + 4 + 4;
 constexpr size_t kSegmentBytes = 12 + 12 + 4 + 12 + 2 + 1 + 4;
@@ -150,7 +150,7 @@ Bytes SerializeLightSet(const LightSet& set) {
   WriteHeader(w, Kind::kLightSet);
   const LightSetStats& s = set.stats;
   for (size_t v : {s.area_vpls, s.surface_vpls, s.point_lights, s.directional_lights,
-                   s.particle_paths, s.caustic_vpls, s.glossy_vpls, s.medium_vpls})
+                   s.particle_paths, s.caustic_vpls, s.glossy_vpls, s.medium_vpls, s.vrls})
     w.U64(v);
   w.U64(set.lights.size());
   for (const VirtualLight& l : set.lights) {
@@ -166,6 +166,7 @@ Bytes SerializeLightSet(const LightSet& set) {
     w.U8(l.spot);
     w.F32(l.g);
     w.U16(uint16_t(l.medium));
+    w.F32(l.length);
   }
   return w.Take();
 }
@@ -176,7 +177,7 @@ LightSet DeserializeLightSet(ByteView bytes) {
   LightSet set;
   LightSetStats& s = set.stats;
   for (size_t* v : {&s.area_vpls, &s.surface_vpls, &s.point_lights, &s.directional_lights,
-                    &s.particle_paths, &s.caustic_vpls, &s.glossy_vpls, &s.medium_vpls})
+                    &s.particle_paths, &s.caustic_vpls, &s.glossy_vpls, &s.medium_vpls, &s.vrls})
     *v = size_t(r.U64());
   set.lights.resize(r.Count(kLightBytes));
   for (VirtualLight& l : set.lights) {
@@ -184,7 +185,7 @@ LightSet DeserializeLightSet(ByteView bytes) {
     l.power = GetRGB(r);
     l.material = r.U32();
     uint8_t kind = r.U8();
-    if (kind > uint8_t(VirtualLightKind::kMediumVPL))
+    if (kind > uint8_t(VirtualLightKind::kVRL))
       throw SerializeError("light set: invalid light kind " + std::to_string(kind));
     l.kind = VirtualLightKind(kind);
     l.depth = r.U8();
@@ -195,6 +196,7 @@ LightSet DeserializeLightSet(ByteView bytes) {
     l.spot = r.Bool();
     l.g = r.F32();
     l.medium = int16_t(r.U16());
+    l.length = r.F32();
   }
   r.ExpectEnd();
   return set;

@@ -29,7 +29,8 @@ using Bytes = std::vector<uint8_t>;
 using ByteView = std::span<const uint8_t>;
 
 // Bumped whenever an encoding below changes; a decoder refuses other versions.
-inline constexpr uint16_t kSerializeVersion = 2;  // 2: media on shading points, medium VPLs
+// 2: media on shading points, medium VPLs; 3: VRLs (light length, VRL count)
+inline constexpr uint16_t kSerializeVersion = 3;
 
 Bytes SerializeLightSet(const LightSet& lights);
 LightSet DeserializeLightSet(ByteView bytes);

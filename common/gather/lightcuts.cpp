@@ -328,6 +328,7 @@ EmissionBound LightEmissionBound(const VirtualLight& l, const std::vector<Materi
     case VirtualLightKind::kPoint:
     case VirtualLightKind::kDirectional:
     case VirtualLightKind::kMediumVPL:  // never generated for lightcuts (render_job.cpp)
+    case VirtualLightKind::kVRL:        // likewise
       e.diffuse_front = 1;  // unused: these kinds have no emission-side factor above 1
       break;
   }

@@ -429,7 +429,11 @@ std::vector<SubMatrixTask> MatrixRowColumnSampling::PlanRowTasks(
   std::vector<std::pair<uint64_t, uint32_t>> order;
   for (const SubMatrixTask& tile : tiles)
     for (uint32_t row : tile.rows) {
-      uint32_t pixel = receivers.samples[receivers.points[row].sample].pixel;
+      // Rows after the shading points are eye segments (media).
+      const uint32_t sample = row < receivers.points.size()
+                                  ? receivers.points[row].sample
+                                  : receivers.segments[row - receivers.points.size()].sample;
+      uint32_t pixel = receivers.samples[sample].pixel;
       uint32_t x = pixel % uint32_t(std::max(receivers.width, 1));
       uint32_t y = pixel / uint32_t(std::max(receivers.width, 1));
       order.emplace_back(uint64_t(Morton2(x, y)), row);

@@ -119,9 +119,18 @@ EmittedRay SampleEmission(const Scene& scene, const EmitterRef& e, Vec3 center, 
   return out;
 }
 
+// Distance along the (unit-direction) ray to where it leaves the scene's bounding sphere: the
+// end of a VRL in a medium that no surface bounds.
+float ExitDistance(const Ray& ray, Vec3 center, float radius) {
+  Vec3 oc = ray.o - center;
+  float b = Dot(oc, ray.d), c = LengthSquared(oc) - radius * radius;
+  float disc = b * b - c;
+  return disc > 0 ? std::max(0.f, -b + std::sqrt(disc)) : 0.f;
+}
+
 // Traces one particle path and appends its surface VPLs (power not yet divided by #paths).
 void TraceParticlePath(const Scene& scene, const EmitterRef& e, float p_select, Vec3 center,
-                       float radius, int max_depth, bool medium_lights, Rng& rng,
+                       float radius, int max_depth, MediumLights medium_lights, Rng& rng,
                        std::vector<VirtualLight>* out) {
   EmittedRay em = SampleEmission(scene, e, center, radius, rng);
   if (!em.valid) return;
@@ -138,6 +147,29 @@ void TraceParticlePath(const Scene& scene, const EmitterRef& e, float p_select, 
     if (medium >= 0) {
       // Delta tracking decides whether the particle scatters in the medium before the surface.
       const Medium& med = scene.media()[medium];
+      if (medium_lights == MediumLights::kVRL && !med.sigma_s().IsBlack()) {
+        // A "long" VRL (Jarosz et al. 2011's long beams): the whole free flight to the next
+        // surface or medium boundary, with Tr along it evaluated by the elements. Ending it at
+        // the sampled collision instead would attenuate twice (the collision's survival
+        // probability is already Tr). The flux is the one entering the flight.
+        float length = found ? hit.t : ExitDistance(ray, center, radius);
+        if (length > 0 && std::isfinite(length)) {
+          VirtualLight v;
+          v.kind = VirtualLightKind::kVRL;
+          v.p = ray.o;
+          v.n = ray.d;
+          v.ng = ray.d;
+          v.wi = -ray.d;
+          v.length = length;
+          v.power = beta;
+          v.g = med.g();
+          v.medium = int16_t(medium);
+          // The scattering event on the VRL counts as a bounce of the light path.
+          v.depth = uint8_t(std::min(bounces + 1, 255));
+          v.caustic = through_specular;
+          out->push_back(v);
+        }
+      }
       MediumRay mray{ray.o, ray.d, found ? hit.t : kInfinity};
       FreePathSample fp = med.SampleFreePath(mray, rng);
       beta *= fp.weight;
@@ -145,7 +177,7 @@ void TraceParticlePath(const Scene& scene, const EmitterRef& e, float p_select, 
       if (fp.scattered) {
         ++bounces;
         Vec3 x = ray.o + ray.d * fp.t;
-        if (medium_lights) {
+        if (medium_lights == MediumLights::kVPL) {
           // Delta tracking's collision density σ_t·T cancels in the estimator; the weight
           // already holds σ_s/σ_t, so the event re-emits beta through the phase function.
           VirtualLight v;
@@ -348,8 +380,8 @@ LightSet GenerateLights(const Scene& scene, const LightGenerationOptions& opt) {
   const float inv_paths = 1.f / float(paths);
   for (VirtualLight& v : indirect_vpls) {
     v.power *= inv_paths;
-    if (v.kind == VirtualLightKind::kMediumVPL) {
-      ++set.stats.medium_vpls;
+    if (v.kind == VirtualLightKind::kMediumVPL || v.kind == VirtualLightKind::kVRL) {
+      ++(v.kind == VirtualLightKind::kVRL ? set.stats.vrls : set.stats.medium_vpls);
       set.lights.push_back(v);
       continue;
     }

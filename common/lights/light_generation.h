@@ -8,6 +8,13 @@
 
 namespace lightfarm {
 
+// What particle paths leave inside media (render_job.cpp: `--param media_lights`).
+enum class MediumLights : uint8_t {
+  kNone,  // nothing: particles still scatter and attenuate in media
+  kVPL,   // a kMediumVPL at every scattering event
+  kVRL,   // a kVRL per free flight through a medium (Novák 2012)
+};
+
 struct LightGenerationOptions {
   size_t target_lights = 10000;  // total virtual lights wanted (a target; see below)
   // Share of the budget spent on the emitters themselves (area lights, environment); the rest
@@ -15,9 +22,9 @@ struct LightGenerationOptions {
   float direct_fraction = 0.5f;
   int max_depth = 5;        // the scene's path depth (Integrator maxdepth)
   uint64_t seed = 0;
-  // Leave a kMediumVPL at every particle scattering event in a medium (only for gather methods
-  // that evaluate them; otherwise particles still scatter and attenuate in media).
-  bool medium_lights = false;
+  // Lights left inside media (only for gather methods that evaluate media rows). VPLs and VRLs
+  // are two estimates of the same light, so a path leaves one kind or the other, never both.
+  MediumLights medium_lights = MediumLights::kNone;
 };
 
 // Deterministic for a given seed whatever the thread count: every path and every emitter sample
@@ -27,7 +34,8 @@ struct LightGenerationOptions {
 // become directional lights by importance sampling the map; point, spot and distant lights are
 // one column each. Indirect: particle paths leave a VPL at every non-specular surface vertex up
 // to maxdepth - 1 bounces (paths through specular vertices carry caustics; glossy VPLs keep their
-// arrival direction), with Russian roulette. Paths are traced until the indirect budget is met;
+// arrival direction), with Russian roulette. In media, a path leaves a medium VPL at each
+// scattering event or a VRL for each free flight (opt.medium_lights). Paths are traced until the indirect budget is met;
 // every VPL's power is divided by the number of paths started.
 LightSet GenerateLights(const Scene& scene, const LightGenerationOptions& opt);
 

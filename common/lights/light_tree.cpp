@@ -46,6 +46,13 @@ bool IsOriented(VirtualLightKind kind) {
   return kind == VirtualLightKind::kAreaVPL || kind == VirtualLightKind::kSurfaceVPL;
 }
 
+// Kinds split by direction as well as position: oriented lights by their normal, VRLs by their
+// travel direction (Huo 2016's VRL hierarchy by recursive two-way partitioning of segments that
+// are close and parallel).
+bool ClustersByDirection(VirtualLightKind kind) {
+  return IsOriented(kind) || kind == VirtualLightKind::kVRL;
+}
+
 // The normal whose cone the node keeps. Surface VPLs are flipped to the side their light came
 // from: an opaque surface re-emits only into that hemisphere, so the cone also tells which side
 // of the cluster is dark.
@@ -136,7 +143,7 @@ class TreeBuilder {
   // order [first, first + n).
   void BuildKind(VirtualLightKind kind, std::span<BuildLight> build, uint32_t base, uint32_t first) {
     kind_ = kind;
-    oriented_ = IsOriented(kind);
+    oriented_ = ClustersByDirection(kind);
     // The Lightcuts metric's c: the diagonal of the kind's position bounds, so that a cone of
     // half-angle 90° weighs like a box as large as all of this kind's lights.
     Bounds3 all;
@@ -294,11 +301,17 @@ class TreeBuilder {
   void MakeLeaf(const BuildLight& b, LightTreeNode* node) const {
     const VirtualLight& l = lights_.lights[b.light];
     node->bounds = Bounds3();
-    node->bounds.Extend(b.point);
+    if (l.IsRay()) {
+      // A VRL's bounds cover the whole segment (b.point is its midpoint, for splitting).
+      node->bounds.Extend(l.p);
+      node->bounds.Extend(l.End());
+    } else {
+      node->bounds.Extend(b.point);
+    }
     node->intensity = l.power;
     node->intensity_lum = std::max(0.f, l.power.Luminance());
     node->representative = b.light;
-    if (oriented_ || kind_ == VirtualLightKind::kDirectional) {
+    if (IsOriented(kind_) || kind_ == VirtualLightKind::kDirectional) {
       node->cone_axis = b.normal;
       node->cone_cos = (l.kind == VirtualLightKind::kAreaVPL && l.two_sided) ? -1.f : 1.f;
     } else {
@@ -346,8 +359,9 @@ LightTree LightTree::Build(const LightSet& lights, uint64_t seed) {
   LightTree tree;
   const size_t n = lights.size();
   // One tree per kind present; medium VPLs (isotropic-ish points inside a medium) cluster by
-  // position like point lights. Sized for the worst case, trimmed below.
-  constexpr size_t kKindCount = size_t(VirtualLightKind::kMediumVPL) + 1;
+  // position like point lights, VRLs by midpoint and direction (their nodes have no emission
+  // cone: cone_cos = -1). Sized for the worst case, trimmed below.
+  constexpr size_t kKindCount = size_t(VirtualLightKind::kVRL) + 1;
   tree.nodes_.resize(n == 0 ? 0 : 2 * n - 1 + (kKindCount - 1));
   tree.order_.resize(n);
   if (n == 0) return tree;
@@ -355,7 +369,7 @@ LightTree LightTree::Build(const LightSet& lights, uint64_t seed) {
   // Group the lights by kind, in index order inside a kind.
   constexpr std::array<VirtualLightKind, kKindCount> kKinds = {
       VirtualLightKind::kAreaVPL, VirtualLightKind::kSurfaceVPL, VirtualLightKind::kPoint,
-      VirtualLightKind::kDirectional, VirtualLightKind::kMediumVPL};
+      VirtualLightKind::kDirectional, VirtualLightKind::kMediumVPL, VirtualLightKind::kVRL};
   std::array<size_t, kKindCount> counts{};
   double total_lum = 0;
   for (const VirtualLight& l : lights.lights) {
@@ -373,8 +387,9 @@ LightTree LightTree::Build(const LightSet& lights, uint64_t seed) {
       const VirtualLight& l = lights.lights[i];
       BuildLight& b = build[fill[size_t(l.kind)]++];
       b.light = i;
-      b.point = l.IsDirectional() ? l.n : l.p;
-      b.normal = IsOriented(l.kind) || l.IsDirectional() ? EmissionNormal(l) : Vec3(0, 0, 1);
+      b.point = l.IsDirectional() ? l.n : (l.IsRay() ? l.p + l.n * (0.5f * l.length) : l.p);
+      b.normal = IsOriented(l.kind) || l.IsDirectional() || l.IsRay() ? EmissionNormal(l)
+                                                                       : Vec3(0, 0, 1);
       b.weight = std::max(0.f, l.power.Luminance()) + floor_weight;
     }
   }

@@ -2,7 +2,8 @@
 // lights, inner nodes cluster lights of one kind by position (and orientation), each node keeps
 // its bounds, total intensity and a representative light chosen with probability ∝ intensity.
 // Separate trees per light kind (area/surface VPLs are oriented, points and medium VPLs are not,
-// directional lights cluster by direction); `roots()` lists them. Used by lightcuts, lightslice,
+// directional lights cluster by direction, VRLs by midpoint and direction with bounds covering
+// both end points); `roots()` lists them. Used by lightcuts, lightslice,
 // sparse-completion (the global cut) and adaptive-completion.
 #pragma once
 
@@ -14,7 +15,7 @@
 namespace lightfarm {
 
 struct LightTreeNode {
-  Bounds3 bounds;        // positions (for directional lights: of their unit directions)
+  Bounds3 bounds;        // positions (directional lights: their unit directions; VRLs: both ends)
   Vec3 cone_axis{0, 0, 1};
   float cone_cos = -1;   // normals lie within acos(cone_cos) of cone_axis; -1: unbounded
   RGB intensity;         // Σ power of the lights below (the cluster's total power)

@@ -24,8 +24,14 @@ enum class VirtualLightKind : uint8_t {
   // A particle-path scattering event inside a medium (a VPL in a medium): re-emits `power`
   // through the Henyey–Greenstein phase function, I(ω) = power · p_g(-wi · ω), with wi the unit
   // direction towards where the light came from. Generated only for gather methods that handle
-  // media rows (see render_job.cpp); the light tree does not know this kind.
+  // media rows, with `--param media_lights=vpl` (see render_job.cpp).
   kMediumVPL,
+  // A virtual ray light (Novák et al. 2012): a particle's free flight through one medium, from
+  // p along the unit direction n for `length` (to the next surface or medium boundary). The
+  // flux `power` entering it scatters out at every point x_s = p + s·n with density
+  // σ_s(x_s)·Tr(p→x_s) per unit length, through the HG phase function of g. Generated for gather
+  // methods that handle media rows with `--param media_lights=vrl` (the default).
+  kVRL,
 };
 
 struct VirtualLight {
@@ -41,14 +47,17 @@ struct VirtualLight {
   bool caustic = false;   // surface VPL whose light path went through a specular interaction
   float cos_falloff_start = 1, cos_falloff_end = -1;  // spot cone (kPoint with spot)
   bool spot = false;
-  float g = 0;            // medium VPL: HG asymmetry of its medium
-  int16_t medium = -1;    // medium VPL: the medium it sits in
+  float g = 0;            // medium VPL, VRL: HG asymmetry of its medium
+  int16_t medium = -1;    // medium VPL, VRL: the medium it sits in
+  float length = 0;       // VRL: length of the segment p + s·n, s ∈ [0, length]
 
   bool IsDirectional() const { return kind == VirtualLightKind::kDirectional; }
+  bool IsRay() const { return kind == VirtualLightKind::kVRL; }
+  Vec3 End() const { return p + n * length; }  // VRL: the far end point
   // Subject to the geometry-term clamp (virtual lights only; real point lights are exact).
   bool IsClamped() const {
     return kind == VirtualLightKind::kAreaVPL || kind == VirtualLightKind::kSurfaceVPL ||
-           kind == VirtualLightKind::kMediumVPL;
+           kind == VirtualLightKind::kMediumVPL || kind == VirtualLightKind::kVRL;
   }
 };
 
@@ -58,6 +67,7 @@ struct LightSetStats {
   size_t caustic_vpls = 0;  // surface VPLs whose path went through a specular interaction
   size_t glossy_vpls = 0;   // surface VPLs on materials with a glossy lobe
   size_t medium_vpls = 0;   // particle scattering events in media (kMediumVPL)
+  size_t vrls = 0;          // particle free flights through media (kVRL)
 };
 
 struct LightSet {

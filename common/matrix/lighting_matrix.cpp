@@ -59,6 +59,8 @@ RGB LightIntensityTowards(const VirtualLight& L, Vec3 w, const std::vector<Mater
     case VirtualLightKind::kMediumVPL:
       // Light travelling along -wi scatters towards -w: cosθ = Dot(-wi, -w).
       return L.power * HenyeyGreenstein(Dot(L.wi, w), L.g);
+    case VirtualLightKind::kVRL:
+      return RGB(0.f);  // not point-like: evaluated by the VRL elements (vrl_element.cpp)
   }
   return RGB(0.f);
 }
@@ -122,6 +124,11 @@ void LightingMatrix::EvaluateBatched(size_t n, EntryFn entry, SinkFn sink,
       }
       const RowData& row = rows_[ri];
       const VirtualLight& L = lights_.lights[lj];
+      if (L.IsRay()) {
+        // VRL column: an integral along the light, with its own batch of samples.
+        sink(begin + k, VrlPointElement(ri, lj, counters));
+        continue;
+      }
       sink(begin + k, RGB(0.f));  // default: zero unless visible below
       if (L.depth > row.light_depth_budget) continue;
       // Direction to the light and the light's side of the element.

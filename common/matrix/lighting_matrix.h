@@ -18,7 +18,8 @@ struct MatrixOptions {
   // Geometry-term clamp for virtual lights: 1/d² is replaced by 1/max(d², d_min²) with
   // d_min = clamp · (scene bounding-sphere radius). 0 disables it. Real point lights are exact.
   float clamp = 0.01f;
-  // Samples per element of an eye-segment row (equi-angular sampling along the segment).
+  // Samples per element of an eye-segment row (equi-angular sampling along the segment), and
+  // per element of a VRL column (vrl_element.cpp).
   int segment_samples = 4;
 };
 
@@ -90,6 +91,10 @@ class LightingMatrix {
   // in-scattered light along the segment, by equi-angular sampling (Kulla & Fajardo 2012) for
   // point-like lights and transmittance-proportional sampling for directional ones.
   RGB SegmentElement(uint32_t segment, uint32_t col, MatrixCounters* counters) const;
+  // VRL columns (vrl_element.cpp): VRL → surface point (Huo 2016, Eq. 5) and VRL → eye
+  // segment (Eq. 3), each `segment_samples` samples with one batch of shadow rays.
+  RGB VrlPointElement(uint32_t point_row, uint32_t col, MatrixCounters* counters) const;
+  RGB VrlSegmentElement(uint32_t segment, uint32_t col, MatrixCounters* counters) const;
   // Evaluates up to kBatch entries (unshadowed value + shadow ray), then visibility.
   template <typename EntryFn, typename SinkFn>
   void EvaluateBatched(size_t n, EntryFn entry, SinkFn sink, MatrixCounters* counters) const;

@@ -15,6 +15,7 @@ namespace lightfarm {
 RGB LightingMatrix::SegmentElement(uint32_t si, uint32_t col, MatrixCounters* counters) const {
   const EyeSegment& seg = receivers_.segments[si];
   const VirtualLight& L = lights_.lights[col];
+  if (L.IsRay()) return VrlSegmentElement(si, col, counters);  // Huo 2016, Eq. 3
   if (int(L.depth) + int(seg.depth) > max_depth_) return RGB(0.f);
   if (seg.medium < 0 || !(seg.length > 0)) return RGB(0.f);
   const Medium& med = scene_.media()[seg.medium];

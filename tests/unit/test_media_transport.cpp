@@ -87,13 +87,14 @@ TEST(MediaTransport, SurfaceOnlySceneDoesNoMediaWork) {
 namespace lightfarm {
 namespace {
 
-// The media scene under brute: eye segments (h + 1 per ray in the gas) and medium VPLs exist,
+// The media scene under brute with medium VPLs (media_lights=vpl; VRLs are the default and
+// tested in test_vrl.cpp): eye segments (h + 1 per ray in the gas) and medium VPLs exist,
 // each segment row lands in its pixel, and the image stays finite.
 TEST(MediaTransport, MediaSceneHasSegmentsAndMediumLights) {
   RenderSettings s;
   s.width = s.height = 6;
   s.lights = 60;
-  s.params = {"segments_per_ray=3"};
+  s.params = {"segments_per_ray=3", "media_lights=vpl"};
   RenderOutput out = RenderScene(testing::SharedScene("volumetric-caustic"), s);
   const auto& st = out.stats;
   EXPECT_GT(st["receivers"]["segments"].get<uint64_t>(), st["receivers"]["camera_samples"].get<uint64_t>());
