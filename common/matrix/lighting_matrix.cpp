@@ -86,14 +86,79 @@ LightingMatrix::LightingMatrix(const Scene& scene, const ReceiverSet& receivers,
     r.light_depth_budget = uint8_t(std::clamp(max_depth - int(sp.depth), 0, 255));
     r.medium_out = sp.medium_out;
     r.medium_in = sp.medium_in;
+    const Material& m = scene.materials()[sp.material];
+    RGB f = m.reflectance * kInvPi;  // EvalDiffuse's value on the lit side
+    r.diffuse = options.diffuse_fast_path && m.type == MaterialType::kDiffuse && !f.IsBlack();
+    r.throughput_f = r.throughput * f;
+    r.origin_front = OffsetRayOrigin(r.p, r.ng, r.ng);
+    r.origin_back = OffsetRayOrigin(r.p, r.ng, -r.ng);
   }
   light_frames_.resize(lights.size());
+  diffuse_lights_.resize(lights.size());
   for (size_t j = 0; j < lights.size(); ++j) {
     const VirtualLight& L = lights.lights[j];
+    DiffuseLight& d = diffuse_lights_[j];
+    d.p = L.p;
+    d.n = L.n;
+    d.ng = L.ng;
+    // OffsetRayOrigin(p, ng, -w) moves to the ng side when -w·ng >= 0 (receiver in front).
+    d.target_front = OffsetRayOrigin(L.p, L.ng, L.ng);
+    d.target_back = OffsetRayOrigin(L.p, L.ng, -L.ng);
+    d.two_sided = L.two_sided;
+    d.depth = L.depth;
+    d.emission = L.power;
+    d.fast = options.diffuse_fast_path && L.kind == VirtualLightKind::kAreaVPL;
     if (L.kind != VirtualLightKind::kSurfaceVPL) continue;
     light_frames_[j].frame = Frame(L.n);
     light_frames_[j].wi_local = light_frames_[j].frame.ToLocal(L.wi);
+    const Material& m = scene.materials()[L.material];
+    d.surface = true;
+    d.wi_z = light_frames_[j].wi_local.z;
+    d.emission = L.power * (m.reflectance * kInvPi);  // as L.power * EvalDiffuse(...)
+    d.fast = options.diffuse_fast_path && m.type == MaterialType::kDiffuse;
   }
+}
+
+// Every step mirrors the general path in EvaluateBatched with the same float operations in the
+// same order (no FMA contraction on the baseline x86-64 target), so the bits agree; the savings
+// are the row/light invariants hoisted to the constructor and no BSDF dispatch.
+bool LightingMatrix::DiffuseElement(const RowData& row, const DiffuseLight& L, RGB* value,
+                                    float* scale_unclamped, Vec3* w, Vec3* origin,
+                                    Vec3* dir) const {
+  if (L.depth > row.light_depth_budget) return false;
+  Vec3 d = L.p - row.p;
+  float dist2 = LengthSquared(d);
+  if (!(dist2 > 0)) return false;
+  *w = d / std::sqrt(dist2);
+  float wi_z = Dot(*w, row.frame.n);
+  float side = Dot(row.ng, *w);
+  if (side * wi_z <= 0) return false;
+  if (!(row.wo_local.z * wi_z > 0)) return false;  // EvalDiffuse: same hemisphere as wo
+  // The light's cosine towards the receiver: -w in the light's frame (exact negation).
+  float out_z = -Dot(*w, L.n);
+  float light_side = Dot(*w, L.ng);  // -(ng · -w), exactly
+  if (L.surface) {
+    // The general path's (ng·-w)·cos_out <= 0, with ng·-w = -light_side exactly.
+    if (light_side * out_z >= 0) return false;
+    if (!(L.wi_z * out_z > 0)) return false;    // EvalDiffuse at the light
+  } else if (out_z <= 0 && !L.two_sided) {
+    return false;
+  }
+  RGB intensity = L.emission * std::abs(out_z);
+  if (intensity.IsBlack()) return false;
+  float geometry;
+  *scale_unclamped = 1.f;
+  if (dist2 < clamp_distance2_) {  // area and surface VPLs are always clamped
+    geometry = 1.f / clamp_distance2_;
+    *scale_unclamped = clamp_distance2_ / dist2;
+  } else {
+    geometry = 1.f / dist2;
+  }
+  *value = row.throughput_f * intensity * (std::abs(wi_z) * geometry);
+  if (value->IsBlack() || !value->IsFinite()) return false;
+  *origin = side < 0 ? row.origin_back : row.origin_front;
+  *dir = (light_side > 0 ? L.target_back : L.target_front) - *origin;
+  return IsFinite(*origin) && IsFinite(*dir);
 }
 
 template <typename EntryFn, typename SinkFn>
@@ -112,6 +177,34 @@ void LightingMatrix::EvaluateBatched(size_t n, EntryFn entry, SinkFn sink,
   for (size_t begin = 0; begin < n; begin += kBatch) {
     size_t count = std::min(kBatch, n - begin);
     size_t nrays = 0;
+    // Queues the shadow ray of entry k (unshadowed `value`) for this batch's rtcOccluded1M.
+    auto add_ray = [&](uint32_t ri, uint32_t lj, size_t k, RGB value, float scale_unclamped, Vec3 w,
+                       Vec3 o, Vec3 dir, float tfar, bool directional) {
+      RTCRay& ray = rays[nrays];
+      ray.org_x = o.x; ray.org_y = o.y; ray.org_z = o.z;
+      ray.dir_x = dir.x; ray.dir_y = dir.y; ray.dir_z = dir.z;
+      ray.tnear = 0.f;
+      ray.tfar = tfar;
+      ray.time = 0.f;
+      ray.mask = 0xFFFFFFFFu;
+      ray.id = uint32_t(nrays);
+      ray.flags = 0;
+      if (media) {
+        // Generalized visibility (Huo 2016, Sec. 3): visibility × transmittance of the shadow
+        // segment, walked from the receiver's side (its medium is known) towards the light.
+        const RowData& row = rows_[ri];
+        origins[nrays] = o;
+        float len = directional ? kInfinity : Length(dir);
+        dirs[nrays] = directional ? dir : dir / len;
+        lengths[nrays] = directional ? kInfinity : len * tfar;
+        start_medium[nrays] = Dot(w, row.ng) > 0 ? row.medium_out : row.medium_in;
+        entry_key[nrays] = (uint64_t(ri) << 32) | lj;
+      }
+      values[nrays] = value;
+      unclamped[nrays] = scale_unclamped;
+      slot[nrays] = uint32_t(k);
+      ++nrays;
+    };
     for (size_t k = 0; k < count; ++k) {
       uint32_t ri, lj;
       entry(begin + k, &ri, &lj);
@@ -121,8 +214,16 @@ void LightingMatrix::EvaluateBatched(size_t n, EntryFn entry, SinkFn sink,
         continue;
       }
       const RowData& row = rows_[ri];
-      const VirtualLight& L = lights_.lights[lj];
       sink(begin + k, RGB(0.f));  // default: zero unless visible below
+      if (row.diffuse && diffuse_lights_[lj].fast) {
+        RGB value;
+        float scale_unclamped;
+        Vec3 w, o, dir;
+        if (DiffuseElement(row, diffuse_lights_[lj], &value, &scale_unclamped, &w, &o, &dir))
+          add_ray(ri, lj, k, value, scale_unclamped, w, o, dir, 1.f - 1e-4f, false);
+        continue;
+      }
+      const VirtualLight& L = lights_.lights[lj];
       if (L.depth > row.light_depth_budget) continue;
       // Direction to the light and the light's side of the element.
       Vec3 w;
@@ -164,7 +265,6 @@ void LightingMatrix::EvaluateBatched(size_t n, EntryFn entry, SinkFn sink,
       RGB value = row.throughput * f * intensity * (std::abs(wi_local.z) * geometry);
       if (value.IsBlack() || !value.IsFinite()) continue;
       // Shadow ray between offset end points; dir is left unnormalised with tfar just short of 1.
-      RTCRay& ray = rays[nrays];
       Vec3 o = OffsetRayOrigin(row.p, row.ng, w);
       Vec3 dir;
       float tfar;
@@ -179,28 +279,7 @@ void LightingMatrix::EvaluateBatched(size_t n, EntryFn entry, SinkFn sink,
         tfar = 1.f - 1e-4f;
       }
       if (!IsFinite(o) || !IsFinite(dir)) continue;  // never hand Embree a NaN ray
-      ray.org_x = o.x; ray.org_y = o.y; ray.org_z = o.z;
-      ray.dir_x = dir.x; ray.dir_y = dir.y; ray.dir_z = dir.z;
-      ray.tnear = 0.f;
-      ray.tfar = tfar;
-      ray.time = 0.f;
-      ray.mask = 0xFFFFFFFFu;
-      ray.id = uint32_t(nrays);
-      ray.flags = 0;
-      if (media) {
-        // Generalized visibility (Huo 2016, Sec. 3): visibility × transmittance of the shadow
-        // segment, walked from the receiver's side (its medium is known) towards the light.
-        origins[nrays] = o;
-        float len = L.IsDirectional() ? kInfinity : Length(dir);
-        dirs[nrays] = L.IsDirectional() ? dir : dir / len;
-        lengths[nrays] = L.IsDirectional() ? kInfinity : len * tfar;
-        start_medium[nrays] = Dot(w, row.ng) > 0 ? row.medium_out : row.medium_in;
-        entry_key[nrays] = (uint64_t(ri) << 32) | lj;
-      }
-      values[nrays] = value;
-      unclamped[nrays] = scale_unclamped;
-      slot[nrays] = uint32_t(k);
-      ++nrays;
+      add_ray(ri, lj, k, value, scale_unclamped, w, o, dir, tfar, L.IsDirectional());
     }
     counters->elements += count;
     if (nrays == 0) continue;

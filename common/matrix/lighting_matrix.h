@@ -20,6 +20,9 @@ struct MatrixOptions {
   float clamp = 0.01f;
   // Samples per element of an eye-segment row (equi-angular sampling along the segment).
   int segment_samples = 4;
+  // The Lambertian fast path of surface elements (see LightingMatrix::DiffuseElement). It gives
+  // the same bits as the general path; false forces the general path (tests compare the two).
+  bool diffuse_fast_path = true;
 };
 
 // Per-caller counters (no atomics in the hot path; callers sum them).
@@ -85,7 +88,29 @@ class LightingMatrix {
     uint32_t material;
     uint8_t light_depth_budget;  // max light-path depth this receiver may connect to
     int16_t medium_out, medium_in;  // media on the ng / -ng side (ShadingPoint)
+    // Lambertian receiver (diffuse_fast_path): throughput · f, constant over the row, and the
+    // shadow-ray origins OffsetRayOrigin gives for lights on the ng / -ng side.
+    bool diffuse = false;
+    RGB throughput_f;
+    Vec3 origin_front, origin_back;
   };
+  // Per light, what the Lambertian fast path needs in one cache-friendly record: area VPLs and
+  // surface VPLs on Lambertian materials (other kinds and materials take the general path).
+  struct DiffuseLight {
+    Vec3 p, n, ng;
+    // Shadow-ray end points OffsetRayOrigin(p, ng, -w) gives for receivers on the ng / -ng side.
+    Vec3 target_front, target_back;
+    RGB emission;        // area VPL: power; surface VPL: power · reflectance/π
+    float wi_z = 0;      // surface VPL: cos of the arrival direction in its shading frame
+    bool fast = false;   // takes the fast path
+    bool surface = false;  // surface VPL (else area VPL)
+    bool two_sided = false;
+    uint8_t depth = 0;
+  };
+  // The unshadowed value of a Lambertian receiver × fast light element; false when it is zero.
+  // Bit-identical to the general path in EvaluateBatched.
+  bool DiffuseElement(const RowData& row, const DiffuseLight& L, RGB* value, float* scale_unclamped,
+                      Vec3* w, Vec3* origin, Vec3* dir) const;
   // One element of an eye-segment row (Huo 2016, Eq. 4: light → eye segment): the integral of
   // in-scattered light along the segment, by equi-angular sampling (Kulla & Fajardo 2012) for
   // point-like lights and transmittance-proportional sampling for directional ones.
@@ -105,6 +130,7 @@ class LightingMatrix {
     Vec3 wi_local;
   };
   std::vector<SurfaceLightFrame> light_frames_;
+  std::vector<DiffuseLight> diffuse_lights_;
   float clamp_distance_ = 0, clamp_distance2_ = 0;
   mutable std::vector<RTCRay>* recorded_rays_ = nullptr;
   int segment_samples_ = 4;
