@@ -121,44 +121,41 @@ LightingMatrix::LightingMatrix(const Scene& scene, const ReceiverSet& receivers,
 
 // Every step mirrors the general path in EvaluateBatched with the same float operations in the
 // same order (no FMA contraction on the baseline x86-64 target), so the bits agree; the savings
-// are the row/light invariants hoisted to the constructor and no BSDF dispatch.
-bool LightingMatrix::DiffuseElement(const RowData& row, const DiffuseLight& L, RGB* value,
-                                    float* scale_unclamped, Vec3* w, Vec3* origin,
-                                    Vec3* dir) const {
-  if (L.depth > row.light_depth_budget) return false;
+// are the row/light invariants hoisted to the constructor and no BSDF dispatch. The side tests
+// reject about a third of the elements in no predictable order, so they are combined without
+// branches (a mispredicted branch costs as much as the arithmetic of a whole element); the
+// outputs are computed even for a rejected element, and then unused.
+inline bool LightingMatrix::DiffuseElement(const RowData& row, const DiffuseLight& L, RGB* value,
+                                           float* scale_unclamped, Vec3* w, Vec3* origin,
+                                           Vec3* dir) const {
   Vec3 d = L.p - row.p;
   float dist2 = LengthSquared(d);
-  if (!(dist2 > 0)) return false;
   *w = d / std::sqrt(dist2);
   float wi_z = Dot(*w, row.frame.n);
   float side = Dot(row.ng, *w);
-  if (side * wi_z <= 0) return false;
-  if (!(row.wo_local.z * wi_z > 0)) return false;  // EvalDiffuse: same hemisphere as wo
   // The light's cosine towards the receiver: -w in the light's frame (exact negation).
   float out_z = -Dot(*w, L.n);
   float light_side = Dot(*w, L.ng);  // -(ng · -w), exactly
-  if (L.surface) {
-    // The general path's (ng·-w)·cos_out <= 0, with ng·-w = -light_side exactly.
-    if (light_side * out_z >= 0) return false;
-    if (!(L.wi_z * out_z > 0)) return false;    // EvalDiffuse at the light
-  } else if (out_z <= 0 && !L.two_sided) {
-    return false;
-  }
+  // Surface VPL: the general path's (ng·-w)·cos_out <= 0 test (ng·-w = -light_side exactly) and
+  // EvalDiffuse's same-hemisphere test at the light; area VPL: LightIntensityTowards' test.
+  bool emits = L.surface ? !(light_side * out_z >= 0) & (L.wi_z * out_z > 0)
+                         : !(out_z <= 0) | L.two_sided;
+  bool ok = (L.depth <= row.light_depth_budget) & (dist2 > 0) & !(side * wi_z <= 0) &
+            (row.wo_local.z * wi_z > 0) &  // EvalDiffuse: same hemisphere as wo
+            emits;
   RGB intensity = L.emission * std::abs(out_z);
-  if (intensity.IsBlack()) return false;
-  float geometry;
+  float geometry = 1.f / dist2;
   *scale_unclamped = 1.f;
   if (dist2 < clamp_distance2_) {  // area and surface VPLs are always clamped
     geometry = 1.f / clamp_distance2_;
     *scale_unclamped = clamp_distance2_ / dist2;
-  } else {
-    geometry = 1.f / dist2;
   }
   *value = row.throughput_f * intensity * (std::abs(wi_z) * geometry);
-  if (value->IsBlack() || !value->IsFinite()) return false;
   *origin = side < 0 ? row.origin_back : row.origin_front;
   *dir = (light_side > 0 ? L.target_back : L.target_front) - *origin;
-  return IsFinite(*origin) && IsFinite(*dir);
+  // Rare rejections (black or non-finite values, NaN rays) may branch.
+  return ok && !intensity.IsBlack() && !value->IsBlack() && value->IsFinite() &&
+         IsFinite(*origin) && IsFinite(*dir);
 }
 
 template <typename EntryFn, typename SinkFn>
@@ -178,8 +175,9 @@ void LightingMatrix::EvaluateBatched(size_t n, EntryFn entry, SinkFn sink,
     size_t count = std::min(kBatch, n - begin);
     size_t nrays = 0;
     // Queues the shadow ray of entry k (unshadowed `value`) for this batch's rtcOccluded1M.
+    // keep = false writes the slot and leaves it to the next ray (no branch on the caller's test).
     auto add_ray = [&](uint32_t ri, uint32_t lj, size_t k, RGB value, float scale_unclamped, Vec3 w,
-                       Vec3 o, Vec3 dir, float tfar, bool directional) {
+                       Vec3 o, Vec3 dir, float tfar, bool directional, bool keep) {
       RTCRay& ray = rays[nrays];
       ray.org_x = o.x; ray.org_y = o.y; ray.org_z = o.z;
       ray.dir_x = dir.x; ray.dir_y = dir.y; ray.dir_z = dir.z;
@@ -203,7 +201,7 @@ void LightingMatrix::EvaluateBatched(size_t n, EntryFn entry, SinkFn sink,
       values[nrays] = value;
       unclamped[nrays] = scale_unclamped;
       slot[nrays] = uint32_t(k);
-      ++nrays;
+      nrays += keep ? 1 : 0;
     };
     for (size_t k = 0; k < count; ++k) {
       uint32_t ri, lj;
@@ -219,8 +217,8 @@ void LightingMatrix::EvaluateBatched(size_t n, EntryFn entry, SinkFn sink,
         RGB value;
         float scale_unclamped;
         Vec3 w, o, dir;
-        if (DiffuseElement(row, diffuse_lights_[lj], &value, &scale_unclamped, &w, &o, &dir))
-          add_ray(ri, lj, k, value, scale_unclamped, w, o, dir, 1.f - 1e-4f, false);
+        bool keep = DiffuseElement(row, diffuse_lights_[lj], &value, &scale_unclamped, &w, &o, &dir);
+        add_ray(ri, lj, k, value, scale_unclamped, w, o, dir, 1.f - 1e-4f, false, keep);
         continue;
       }
       const VirtualLight& L = lights_.lights[lj];
@@ -279,7 +277,7 @@ void LightingMatrix::EvaluateBatched(size_t n, EntryFn entry, SinkFn sink,
         tfar = 1.f - 1e-4f;
       }
       if (!IsFinite(o) || !IsFinite(dir)) continue;  // never hand Embree a NaN ray
-      add_ray(ri, lj, k, value, scale_unclamped, w, o, dir, tfar, L.IsDirectional());
+      add_ray(ri, lj, k, value, scale_unclamped, w, o, dir, tfar, L.IsDirectional(), true);
     }
     counters->elements += count;
     if (nrays == 0) continue;
