@@ -22,8 +22,101 @@ struct Unshadowed {
   float tfar = 0;
 };
 
-// Intensity light L sends towards a point seen from it along -w (w: unit, point → light);
-// zero where it does not emit. Shared by surface rows and eye-segment rows.
+// The Lambertian fast path's geometry for a batch of entries, one slot each: the direction to
+// the light, the combined side/hemisphere tests, |cos| at the light, |cos| at the receiver times
+// the (clamped) geometry term, and which offset end points the shadow ray uses. The same float
+// operations in the same order as LightingMatrix::DiffuseElement (bit-identical), written
+// without branches over plain arrays so the compiler vectorises the loop.
+struct DiffuseGeometryBatch {
+  alignas(16) std::array<float, kBatch> wx, wy, wz, abs_out, g, scale;
+  alignas(16) std::array<int32_t, kBatch> ok, back, light_back;
+};
+
+// Receiver inputs of the kernel: one receiver for the whole batch, or one per entry.
+struct FixedReceiver {
+  float p[3], n[3], ng[3], wo_z;
+  int32_t budget;
+  float P(int c, size_t) const { return p[c]; }
+  float N(int c, size_t) const { return n[c]; }
+  float Ng(int c, size_t) const { return ng[c]; }
+  float WoZ(size_t) const { return wo_z; }
+  int32_t Budget(size_t) const { return budget; }
+};
+struct ReceiverBatch {
+  alignas(16) std::array<float, kBatch> p[3], n[3], ng[3], wo_z;
+  alignas(16) std::array<int32_t, kBatch> budget;
+};
+struct ReceiverArrays {
+  const float *p[3], *n[3], *ng[3], *wo_z;
+  const int32_t* budget;
+  explicit ReceiverArrays(const ReceiverBatch& b)
+      : p{b.p[0].data(), b.p[1].data(), b.p[2].data()},
+        n{b.n[0].data(), b.n[1].data(), b.n[2].data()},
+        ng{b.ng[0].data(), b.ng[1].data(), b.ng[2].data()},
+        wo_z(b.wo_z.data()),
+        budget(b.budget.data()) {}
+  float P(int c, size_t m) const { return p[c][m]; }
+  float N(int c, size_t m) const { return n[c][m]; }
+  float Ng(int c, size_t m) const { return ng[c][m]; }
+  float WoZ(size_t m) const { return wo_z[m]; }
+  int32_t Budget(size_t m) const { return budget[m]; }
+};
+// Light inputs: one light for the whole batch, or consecutive lights from the matrix's arrays.
+struct FixedLight {
+  float p[3], n[3], ng[3], wi_z;
+  int32_t surface, two_sided, depth;
+  float P(int c, size_t) const { return p[c]; }
+  float N(int c, size_t) const { return n[c]; }
+  float Ng(int c, size_t) const { return ng[c]; }
+  float WiZ(size_t) const { return wi_z; }
+  int32_t Surface(size_t) const { return surface; }
+  int32_t TwoSided(size_t) const { return two_sided; }
+  int32_t Depth(size_t) const { return depth; }
+};
+struct LightArrays {
+  const float *p[3], *n[3], *ng[3], *wi_z;
+  const int32_t *surface, *two_sided, *depth;
+  float P(int c, size_t m) const { return p[c][m]; }
+  float N(int c, size_t m) const { return n[c][m]; }
+  float Ng(int c, size_t m) const { return ng[c][m]; }
+  float WiZ(size_t m) const { return wi_z[m]; }
+  int32_t Surface(size_t m) const { return surface[m]; }
+  int32_t TwoSided(size_t m) const { return two_sided[m]; }
+  int32_t Depth(size_t m) const { return depth[m]; }
+};
+
+template <typename Receivers, typename Lights>
+void DiffuseGeometry(size_t count, const Receivers R, const Lights L, float clamp2,
+                     DiffuseGeometryBatch* __restrict out) {
+  const float inv_clamp2 = 1.f / clamp2;
+  for (size_t m = 0; m < count; ++m) {
+    float dx = L.P(0, m) - R.P(0, m), dy = L.P(1, m) - R.P(1, m), dz = L.P(2, m) - R.P(2, m);
+    float dist2 = dx * dx + dy * dy + dz * dz;
+    float inv_len = 1.f / std::sqrt(dist2);  // as Vec3::operator/
+    float wx = dx * inv_len, wy = dy * inv_len, wz = dz * inv_len;
+    float wi_z = wx * R.N(0, m) + wy * R.N(1, m) + wz * R.N(2, m);
+    float side = R.Ng(0, m) * wx + R.Ng(1, m) * wy + R.Ng(2, m) * wz;
+    float out_z = -(wx * L.N(0, m) + wy * L.N(1, m) + wz * L.N(2, m));
+    float light_side = wx * L.Ng(0, m) + wy * L.Ng(1, m) + wz * L.Ng(2, m);
+    int32_t surface = L.Surface(m);
+    int32_t emits = (surface & int32_t(!(light_side * out_z >= 0)) & int32_t(L.WiZ(m) * out_z > 0)) |
+                    ((1 - surface) & (int32_t(!(out_z <= 0)) | L.TwoSided(m)));
+    out->ok[m] = int32_t(L.Depth(m) <= R.Budget(m)) & int32_t(dist2 > 0) &
+                 int32_t(!(side * wi_z <= 0)) & int32_t(R.WoZ(m) * wi_z > 0) & emits;
+    // Both quotients unconditionally: a division under a condition keeps the loop scalar.
+    float inv_dist2 = 1.f / dist2, clamp_ratio = clamp2 / dist2;
+    bool clamped = dist2 < clamp2;
+    out->g[m] = std::abs(wi_z) * (clamped ? inv_clamp2 : inv_dist2);
+    out->scale[m] = clamped ? clamp_ratio : 1.f;
+    out->abs_out[m] = std::abs(out_z);
+    out->wx[m] = wx;
+    out->wy[m] = wy;
+    out->wz[m] = wz;
+    out->back[m] = int32_t(side < 0);
+    out->light_back[m] = int32_t(light_side > 0);
+  }
+}
+
 }  // namespace
 
 RGB LightIntensityTowards(const VirtualLight& L, Vec3 w, const std::vector<Material>& materials) {
@@ -95,6 +188,10 @@ LightingMatrix::LightingMatrix(const Scene& scene, const ReceiverSet& receivers,
   }
   light_frames_.resize(lights.size());
   diffuse_lights_.resize(lights.size());
+  DiffuseLightArrays& a = light_arrays_;
+  for (auto* v : {&a.px, &a.py, &a.pz, &a.nx, &a.ny, &a.nz, &a.ngx, &a.ngy, &a.ngz, &a.wi_z})
+    v->resize(lights.size());
+  for (auto* v : {&a.surface, &a.two_sided, &a.depth}) v->resize(lights.size());
   for (size_t j = 0; j < lights.size(); ++j) {
     const VirtualLight& L = lights.lights[j];
     DiffuseLight& d = diffuse_lights_[j];
@@ -116,6 +213,16 @@ LightingMatrix::LightingMatrix(const Scene& scene, const ReceiverSet& receivers,
     d.wi_z = light_frames_[j].wi_local.z;
     d.emission = L.power * (m.reflectance * kInvPi);  // as L.power * EvalDiffuse(...)
     d.fast = options.diffuse_fast_path && m.type == MaterialType::kDiffuse;
+  }
+  for (size_t j = 0; j < lights.size(); ++j) {
+    const DiffuseLight& d = diffuse_lights_[j];
+    a.px[j] = d.p.x; a.py[j] = d.p.y; a.pz[j] = d.p.z;
+    a.nx[j] = d.n.x; a.ny[j] = d.n.y; a.nz[j] = d.n.z;
+    a.ngx[j] = d.ng.x; a.ngy[j] = d.ng.y; a.ngz[j] = d.ng.z;
+    a.wi_z[j] = d.wi_z;
+    a.surface[j] = d.surface;
+    a.two_sided[j] = d.two_sided;
+    a.depth[j] = d.depth;
   }
 }
 
@@ -158,9 +265,9 @@ inline bool LightingMatrix::DiffuseElement(const RowData& row, const DiffuseLigh
          IsFinite(*origin) && IsFinite(*dir);
 }
 
-template <typename EntryFn, typename SinkFn>
+template <typename EntryFn, typename SinkFn, LightingMatrix::BatchShape kShape>
 void LightingMatrix::EvaluateBatched(size_t n, EntryFn entry, SinkFn sink,
-                                     MatrixCounters* counters) const {
+                                     MatrixCounters* counters, uint32_t fixed) const {
   const std::vector<Material>& materials = scene_.materials();
   alignas(16) std::array<RTCRay, kBatch> rays;
   std::array<RGB, kBatch> values;
@@ -171,9 +278,47 @@ void LightingMatrix::EvaluateBatched(size_t n, EntryFn entry, SinkFn sink,
   std::array<int16_t, kBatch> start_medium;
   std::array<uint64_t, kBatch> entry_key;
   const bool media = scene_.has_media();
+  DiffuseGeometryBatch geo;  // the fast path's geometry of this batch, when `batched`
+  ReceiverBatch receivers;        // Column: the batch's receivers, for the geometry kernel
   for (size_t begin = 0; begin < n; begin += kBatch) {
     size_t count = std::min(kBatch, n - begin);
     size_t nrays = 0;
+    bool batched = false;
+    if constexpr (kShape == BatchShape::kRow) {
+      if (fixed < rows_.size() && rows_[fixed].diffuse) {
+        const RowData& r = rows_[fixed];
+        const FixedReceiver R{{r.p.x, r.p.y, r.p.z}, {r.frame.n.x, r.frame.n.y, r.frame.n.z},
+                              {r.ng.x, r.ng.y, r.ng.z}, r.wo_local.z, r.light_depth_budget};
+        const DiffuseLightArrays& a = light_arrays_;
+        const LightArrays L{{&a.px[begin], &a.py[begin], &a.pz[begin]},
+                            {&a.nx[begin], &a.ny[begin], &a.nz[begin]},
+                            {&a.ngx[begin], &a.ngy[begin], &a.ngz[begin]}, &a.wi_z[begin],
+                            &a.surface[begin], &a.two_sided[begin], &a.depth[begin]};
+        DiffuseGeometry(count, R, L, clamp_distance2_, &geo);
+        batched = true;
+      }
+    } else if constexpr (kShape == BatchShape::kColumn) {
+      if (diffuse_lights_[fixed].fast && !rows_.empty()) {
+        for (size_t k = 0; k < count; ++k) {
+          uint32_t ri, lj;
+          entry(begin + k, &ri, &lj);
+          // Other rows (eye segments) get a dummy receiver; their slot is never read.
+          const RowData& r = rows_[ri < rows_.size() ? ri : 0];
+          for (int c = 0; c < 3; ++c) {
+            receivers.p[c][k] = r.p[c];
+            receivers.n[c][k] = r.frame.n[c];
+            receivers.ng[c][k] = r.ng[c];
+          }
+          receivers.wo_z[k] = r.wo_local.z;
+          receivers.budget[k] = r.light_depth_budget;
+        }
+        const DiffuseLight& d = diffuse_lights_[fixed];
+        const FixedLight L{{d.p.x, d.p.y, d.p.z}, {d.n.x, d.n.y, d.n.z}, {d.ng.x, d.ng.y, d.ng.z},
+                           d.wi_z, d.surface, d.two_sided, d.depth};
+        DiffuseGeometry(count, ReceiverArrays(receivers), L, clamp_distance2_, &geo);
+        batched = true;
+      }
+    }
     // Queues the shadow ray of entry k (unshadowed `value`) for this batch's rtcOccluded1M.
     // keep = false writes the slot and leaves it to the next ray (no branch on the caller's test).
     auto add_ray = [&](uint32_t ri, uint32_t lj, size_t k, RGB value, float scale_unclamped, Vec3 w,
@@ -217,7 +362,21 @@ void LightingMatrix::EvaluateBatched(size_t n, EntryFn entry, SinkFn sink,
         RGB value;
         float scale_unclamped;
         Vec3 w, o, dir;
-        bool keep = DiffuseElement(row, diffuse_lights_[lj], &value, &scale_unclamped, &w, &o, &dir);
+        const DiffuseLight& DL = diffuse_lights_[lj];
+        bool keep;
+        if (batched) {
+          // The rest of DiffuseElement from the batch's geometry.
+          RGB intensity = DL.emission * geo.abs_out[k];
+          value = row.throughput_f * intensity * geo.g[k];
+          scale_unclamped = geo.scale[k];
+          w = {geo.wx[k], geo.wy[k], geo.wz[k]};
+          o = geo.back[k] ? row.origin_back : row.origin_front;
+          dir = (geo.light_back[k] ? DL.target_back : DL.target_front) - o;
+          keep = geo.ok[k] && !intensity.IsBlack() && !value.IsBlack() && value.IsFinite() &&
+                 IsFinite(o) && IsFinite(dir);
+        } else {
+          keep = DiffuseElement(row, DL, &value, &scale_unclamped, &w, &o, &dir);
+        }
         add_ray(ri, lj, k, value, scale_unclamped, w, o, dir, 1.f - 1e-4f, false, keep);
         continue;
       }
@@ -319,26 +478,29 @@ RGB LightingMatrix::Element(uint32_t row, uint32_t col, MatrixCounters* counters
 }
 
 void LightingMatrix::Row(uint32_t row, std::span<RGB> out, MatrixCounters* counters) const {
-  EvaluateBatched(
-      cols(), [&](size_t k, uint32_t* r, uint32_t* c) { *r = row; *c = uint32_t(k); },
-      [&](size_t k, RGB v) { out[k] = v; }, counters);
+  auto entry = [&](size_t k, uint32_t* r, uint32_t* c) { *r = row; *c = uint32_t(k); };
+  auto store = [&](size_t k, RGB v) { out[k] = v; };
+  EvaluateBatched<decltype(entry), decltype(store), BatchShape::kRow>(cols(), entry, store,
+                                                                      counters, row);
 }
 
 RGBAccum LightingMatrix::RowSum(uint32_t row, MatrixCounters* counters) const {
   RGBAccum sum;
   // Values arrive per batch in light order (zeros first, then visible ones), so the double sum
   // is independent of threading.
-  EvaluateBatched(
-      cols(), [&](size_t k, uint32_t* r, uint32_t* c) { *r = row; *c = uint32_t(k); },
-      [&](size_t, RGB v) { sum.Add(v); }, counters);
+  auto entry = [&](size_t k, uint32_t* r, uint32_t* c) { *r = row; *c = uint32_t(k); };
+  auto add = [&](size_t, RGB v) { sum.Add(v); };
+  EvaluateBatched<decltype(entry), decltype(add), BatchShape::kRow>(cols(), entry, add, counters,
+                                                                    row);
   return sum;
 }
 
 void LightingMatrix::Column(uint32_t col, std::span<const uint32_t> rows, std::span<RGB> out,
                             MatrixCounters* counters) const {
-  EvaluateBatched(
-      rows.size(), [&](size_t k, uint32_t* r, uint32_t* c) { *r = rows[k]; *c = col; },
-      [&](size_t k, RGB v) { out[k] = v; }, counters);
+  auto entry = [&](size_t k, uint32_t* r, uint32_t* c) { *r = rows[k]; *c = col; };
+  auto store = [&](size_t k, RGB v) { out[k] = v; };
+  EvaluateBatched<decltype(entry), decltype(store), BatchShape::kColumn>(rows.size(), entry, store,
+                                                                         counters, col);
 }
 
 }  // namespace lightfarm

@@ -115,9 +115,14 @@ class LightingMatrix {
   // in-scattered light along the segment, by equi-angular sampling (Kulla & Fajardo 2012) for
   // point-like lights and transmittance-proportional sampling for directional ones.
   RGB SegmentElement(uint32_t segment, uint32_t col, MatrixCounters* counters) const;
+  // Which entries a batched evaluation visits: arbitrary ones, one row against consecutive
+  // lights (Row, RowSum: `fixed` = the row), or one light against a row list (Column: `fixed` =
+  // the light). The last two run the fast path's geometry a batch at a time (vectorised).
+  enum class BatchShape { kEntries, kRow, kColumn };
   // Evaluates up to kBatch entries (unshadowed value + shadow ray), then visibility.
-  template <typename EntryFn, typename SinkFn>
-  void EvaluateBatched(size_t n, EntryFn entry, SinkFn sink, MatrixCounters* counters) const;
+  template <typename EntryFn, typename SinkFn, BatchShape kShape = BatchShape::kEntries>
+  void EvaluateBatched(size_t n, EntryFn entry, SinkFn sink, MatrixCounters* counters,
+                       uint32_t fixed = 0) const;
 
   const Scene& scene_;
   const ReceiverSet& receivers_;
@@ -131,6 +136,13 @@ class LightingMatrix {
   };
   std::vector<SurfaceLightFrame> light_frames_;
   std::vector<DiffuseLight> diffuse_lights_;
+  // The fast path's geometric inputs per light, field by field (structure of arrays), so the
+  // geometry of a row against a batch of consecutive lights vectorises.
+  struct DiffuseLightArrays {
+    std::vector<float> px, py, pz, nx, ny, nz, ngx, ngy, ngz, wi_z;
+    std::vector<int32_t> surface, two_sided, depth;
+  };
+  DiffuseLightArrays light_arrays_;
   float clamp_distance_ = 0, clamp_distance2_ = 0;
   mutable std::vector<RTCRay>* recorded_rays_ = nullptr;
   int segment_samples_ = 4;
