@@ -85,6 +85,17 @@ struct LightArrays {
   int32_t Depth(size_t m) const { return depth[m]; }
 };
 
+// A sink that may skip the zero every entry gets before its value is known (RowSum: adding
+// +0 to a double sum that starts at +0 never changes its bits under round-to-nearest).
+template <typename SinkFn>
+concept SkipsZeroDefaults = SinkFn::kSkipsZeroDefaults;
+
+struct RowSumSink {
+  static constexpr bool kSkipsZeroDefaults = true;
+  RGBAccum* sum;
+  void operator()(size_t, RGB v) const { sum->Add(v); }
+};
+
 template <typename Receivers, typename Lights>
 void DiffuseGeometry(size_t count, const Receivers R, const Lights L, float clamp2,
                      DiffuseGeometryBatch* __restrict out) {
@@ -357,7 +368,8 @@ void LightingMatrix::EvaluateBatched(size_t n, EntryFn entry, SinkFn sink,
         continue;
       }
       const RowData& row = rows_[ri];
-      sink(begin + k, RGB(0.f));  // default: zero unless visible below
+      if constexpr (!SkipsZeroDefaults<SinkFn>)
+        sink(begin + k, RGB(0.f));  // default: zero unless visible below
       if (row.diffuse && diffuse_lights_[lj].fast) {
         RGB value;
         float scale_unclamped;
@@ -489,7 +501,7 @@ RGBAccum LightingMatrix::RowSum(uint32_t row, MatrixCounters* counters) const {
   // Values arrive per batch in light order (zeros first, then visible ones), so the double sum
   // is independent of threading.
   auto entry = [&](size_t k, uint32_t* r, uint32_t* c) { *r = row; *c = uint32_t(k); };
-  auto add = [&](size_t, RGB v) { sum.Add(v); };
+  RowSumSink add{&sum};
   EvaluateBatched<decltype(entry), decltype(add), BatchShape::kRow>(cols(), entry, add, counters,
                                                                     row);
   return sum;
