@@ -276,6 +276,9 @@ inline bool LightingMatrix::DiffuseElement(const RowData& row, const DiffuseLigh
          IsFinite(*origin) && IsFinite(*dir);
 }
 
+// Sink contract: sink(k, v) gets every entry's value; an entry whose value is zero may get that
+// zero more than once (the default, then again when its shadow ray is occluded), and a
+// SkipsZeroDefaults sink may not get it at all.
 template <typename EntryFn, typename SinkFn, LightingMatrix::BatchShape kShape>
 void LightingMatrix::EvaluateBatched(size_t n, EntryFn entry, SinkFn sink,
                                      MatrixCounters* counters, uint32_t fixed) const {
@@ -456,16 +459,18 @@ void LightingMatrix::EvaluateBatched(size_t n, EntryFn entry, SinkFn sink,
     scene_.Occluded(rays.data(), nrays);
     counters->shadow_rays += nrays;
     for (size_t r = 0; r < nrays; ++r) {
-      if (!(rays[r].tfar >= 0.f)) continue;  // occluded: Embree sets tfar = -inf
-      if (media) {
+      bool lit = rays[r].tfar >= 0.f;  // occluded: Embree sets tfar = -inf
+      if (media && lit) {
         // Seeded by the element, so an element has the same value whichever method asks.
         Rng rng(HashSeed({uint64_t(RngStream::kMedium), entry_key[r]}));
         values[r] *= scene_.TransmittanceAlong(origins[r], dirs[r], lengths[r], start_medium[r], rng);
         ++counters->transmittance_evals;
-        if (values[r].IsBlack()) continue;
+        lit = !values[r].IsBlack();
       }
-      sink(begin + slot[r], values[r]);
-      if (unclamped[r] != 1.f) {
+      // An unlit entry is sent its zero again rather than skipped: no branch on the visibility
+      // (unpredictable), and the same result for every sink (a store, or adding +0 to a sum).
+      sink(begin + slot[r], lit ? values[r] : RGB(0.f));
+      if (unclamped[r] != 1.f && lit) {
         float lum = values[r].Luminance();
         counters->clamp_lost += double(lum) * double(unclamped[r] - 1.f);
         counters->clamp_kept += double(lum);
