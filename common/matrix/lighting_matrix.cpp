@@ -206,34 +206,27 @@ LightingMatrix::LightingMatrix(const Scene& scene, const ReceiverSet& receivers,
   for (size_t j = 0; j < lights.size(); ++j) {
     const VirtualLight& L = lights.lights[j];
     DiffuseLight& d = diffuse_lights_[j];
-    d.p = L.p;
-    d.n = L.n;
-    d.ng = L.ng;
     // OffsetRayOrigin(p, ng, -w) moves to the ng side when -w·ng >= 0 (receiver in front).
     d.target_front = OffsetRayOrigin(L.p, L.ng, L.ng);
     d.target_back = OffsetRayOrigin(L.p, L.ng, -L.ng);
-    d.two_sided = L.two_sided;
-    d.depth = L.depth;
     d.emission = L.power;
     d.fast = options.diffuse_fast_path && L.kind == VirtualLightKind::kAreaVPL;
-    if (L.kind != VirtualLightKind::kSurfaceVPL) continue;
-    light_frames_[j].frame = Frame(L.n);
-    light_frames_[j].wi_local = light_frames_[j].frame.ToLocal(L.wi);
-    const Material& m = scene.materials()[L.material];
-    d.surface = true;
-    d.wi_z = light_frames_[j].wi_local.z;
-    d.emission = L.power * (m.reflectance * kInvPi);  // as L.power * EvalDiffuse(...)
-    d.fast = options.diffuse_fast_path && m.type == MaterialType::kDiffuse;
-  }
-  for (size_t j = 0; j < lights.size(); ++j) {
-    const DiffuseLight& d = diffuse_lights_[j];
-    a.px[j] = d.p.x; a.py[j] = d.p.y; a.pz[j] = d.p.z;
-    a.nx[j] = d.n.x; a.ny[j] = d.n.y; a.nz[j] = d.n.z;
-    a.ngx[j] = d.ng.x; a.ngy[j] = d.ng.y; a.ngz[j] = d.ng.z;
+    if (L.kind == VirtualLightKind::kSurfaceVPL) {
+      light_frames_[j].frame = Frame(L.n);
+      light_frames_[j].wi_local = light_frames_[j].frame.ToLocal(L.wi);
+      const Material& m = scene.materials()[L.material];
+      d.surface = true;
+      d.wi_z = light_frames_[j].wi_local.z;
+      d.emission = L.power * (m.reflectance * kInvPi);  // as L.power * EvalDiffuse(...)
+      d.fast = options.diffuse_fast_path && m.type == MaterialType::kDiffuse;
+    }
+    a.px[j] = L.p.x; a.py[j] = L.p.y; a.pz[j] = L.p.z;
+    a.nx[j] = L.n.x; a.ny[j] = L.n.y; a.nz[j] = L.n.z;
+    a.ngx[j] = L.ng.x; a.ngy[j] = L.ng.y; a.ngz[j] = L.ng.z;
     a.wi_z[j] = d.wi_z;
     a.surface[j] = d.surface;
-    a.two_sided[j] = d.two_sided;
-    a.depth[j] = d.depth;
+    a.two_sided[j] = L.two_sided;
+    a.depth[j] = L.depth;
   }
 }
 
@@ -243,22 +236,23 @@ LightingMatrix::LightingMatrix(const Scene& scene, const ReceiverSet& receivers,
 // reject about a third of the elements in no predictable order, so they are combined without
 // branches (a mispredicted branch costs as much as the arithmetic of a whole element); the
 // outputs are computed even for a rejected element, and then unused.
-inline bool LightingMatrix::DiffuseElement(const RowData& row, const DiffuseLight& L, RGB* value,
+inline bool LightingMatrix::DiffuseElement(const RowData& row, const VirtualLight& V,
+                                           const DiffuseLight& L, RGB* value,
                                            float* scale_unclamped, Vec3* w, Vec3* origin,
                                            Vec3* dir) const {
-  Vec3 d = L.p - row.p;
+  Vec3 d = V.p - row.p;
   float dist2 = LengthSquared(d);
   *w = d / std::sqrt(dist2);
   float wi_z = Dot(*w, row.frame.n);
   float side = Dot(row.ng, *w);
   // The light's cosine towards the receiver: -w in the light's frame (exact negation).
-  float out_z = -Dot(*w, L.n);
-  float light_side = Dot(*w, L.ng);  // -(ng · -w), exactly
+  float out_z = -Dot(*w, V.n);
+  float light_side = Dot(*w, V.ng);  // -(ng · -w), exactly
   // Surface VPL: the general path's (ng·-w)·cos_out <= 0 test (ng·-w = -light_side exactly) and
   // EvalDiffuse's same-hemisphere test at the light; area VPL: LightIntensityTowards' test.
   bool emits = L.surface ? !(light_side * out_z >= 0) & (L.wi_z * out_z > 0)
-                         : !(out_z <= 0) | L.two_sided;
-  bool ok = (L.depth <= row.light_depth_budget) & (dist2 > 0) & !(side * wi_z <= 0) &
+                         : !(out_z <= 0) | V.two_sided;
+  bool ok = (V.depth <= row.light_depth_budget) & (dist2 > 0) & !(side * wi_z <= 0) &
             (row.wo_local.z * wi_z > 0) &  // EvalDiffuse: same hemisphere as wo
             emits;
   RGB intensity = L.emission * std::abs(out_z);
@@ -327,8 +321,9 @@ void LightingMatrix::EvaluateBatched(size_t n, EntryFn entry, SinkFn sink,
           receivers.budget[k] = r.light_depth_budget;
         }
         const DiffuseLight& d = diffuse_lights_[fixed];
-        const FixedLight L{{d.p.x, d.p.y, d.p.z}, {d.n.x, d.n.y, d.n.z}, {d.ng.x, d.ng.y, d.ng.z},
-                           d.wi_z, d.surface, d.two_sided, d.depth};
+        const VirtualLight& V = lights_.lights[fixed];
+        const FixedLight L{{V.p.x, V.p.y, V.p.z}, {V.n.x, V.n.y, V.n.z}, {V.ng.x, V.ng.y, V.ng.z},
+                           d.wi_z, d.surface, V.two_sided, V.depth};
         DiffuseGeometry(count, ReceiverArrays(receivers), L, clamp_distance2_, &geo);
         batched = true;
       }
@@ -390,7 +385,7 @@ void LightingMatrix::EvaluateBatched(size_t n, EntryFn entry, SinkFn sink,
           keep = geo.ok[k] && !intensity.IsBlack() && !value.IsBlack() && value.IsFinite() &&
                  IsFinite(o) && IsFinite(dir);
         } else {
-          keep = DiffuseElement(row, DL, &value, &scale_unclamped, &w, &o, &dir);
+          keep = DiffuseElement(row, lights_.lights[lj], DL, &value, &scale_unclamped, &w, &o, &dir);
         }
         add_ray(ri, lj, k, value, scale_unclamped, w, o, dir, 1.f - 1e-4f, false, keep);
         continue;

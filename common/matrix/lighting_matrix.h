@@ -94,23 +94,20 @@ class LightingMatrix {
     RGB throughput_f;
     Vec3 origin_front, origin_back;
   };
-  // Per light, what the Lambertian fast path needs in one cache-friendly record: area VPLs and
-  // surface VPLs on Lambertian materials (other kinds and materials take the general path).
+  // Per light, what the Lambertian fast path adds to the VirtualLight: area VPLs and surface VPLs
+  // on Lambertian materials (other kinds and materials take the general path).
   struct DiffuseLight {
-    Vec3 p, n, ng;
+    RGB emission;        // area VPL: power; surface VPL: power · reflectance/π
     // Shadow-ray end points OffsetRayOrigin(p, ng, -w) gives for receivers on the ng / -ng side.
     Vec3 target_front, target_back;
-    RGB emission;        // area VPL: power; surface VPL: power · reflectance/π
     float wi_z = 0;      // surface VPL: cos of the arrival direction in its shading frame
     bool fast = false;   // takes the fast path
     bool surface = false;  // surface VPL (else area VPL)
-    bool two_sided = false;
-    uint8_t depth = 0;
   };
   // The unshadowed value of a Lambertian receiver × fast light element; false when it is zero.
   // Bit-identical to the general path in EvaluateBatched.
-  bool DiffuseElement(const RowData& row, const DiffuseLight& L, RGB* value, float* scale_unclamped,
-                      Vec3* w, Vec3* origin, Vec3* dir) const;
+  bool DiffuseElement(const RowData& row, const VirtualLight& V, const DiffuseLight& L, RGB* value,
+                      float* scale_unclamped, Vec3* w, Vec3* origin, Vec3* dir) const;
   // One element of an eye-segment row (Huo 2016, Eq. 4: light → eye segment): the integral of
   // in-scattered light along the segment, by equi-angular sampling (Kulla & Fajardo 2012) for
   // point-like lights and transmittance-proportional sampling for directional ones.
