@@ -2,10 +2,12 @@
 // brute-force row sum and a column evaluation issue on cornell-box are recorded once, then
 // replayed through rtcOccluded1M alone; the gather's own rate (shadow rays and elements per
 // second, shading included) over the replay's rate is the efficiency (target >= 0.7).
-// Single-threaded on purpose: the ratio is per core. Run: build/lightfarm_bench
+// Single-threaded on purpose: the ratio is per core. Run:
+//   build/lightfarm_bench --benchmark_repetitions=5 --benchmark_enable_random_interleaving=true
 #include <benchmark/benchmark.h>
 #include <tbb/global_control.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <map>
@@ -109,18 +111,28 @@ BENCHMARK(BM_RawOcclusionBruteRays)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_GatherColumn)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_RawOcclusionColumnRays)->Unit(benchmark::kMillisecond);
 
-// Prints the usual table, then the efficiency ratio per gather.
+// Prints the usual table, then the efficiency ratio per gather: medians over the repetitions
+// (--benchmark_repetitions=N; add --benchmark_enable_random_interleaving=true on a noisy
+// machine so the gather and its replay see the same load), and the spread of the ratio of
+// repetition i of the gather over repetition i of the replay.
 class RatioReporter : public benchmark::ConsoleReporter {
  public:
   void ReportRuns(const std::vector<Run>& runs) override {
     ConsoleReporter::ReportRuns(runs);
     for (const Run& r : runs) {
+      if (r.run_type != Run::RT_Iteration) continue;  // aggregates are recomputed below
       auto it = r.counters.find("rays/s");
-      if (it != r.counters.end()) rates[r.benchmark_name()] = it->second.value;
+      if (it != r.counters.end()) rates[r.run_name.function_name].push_back(it->second.value);
     }
   }
-  std::map<std::string, double> rates;
+  std::map<std::string, std::vector<double>> rates;
 };
+
+double Median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  const size_t n = v.size();
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
 
 }  // namespace
 }  // namespace lightfarm
@@ -142,8 +154,15 @@ int main(int argc, char** argv) {
                              std::pair{"BM_GatherColumn", "BM_RawOcclusionColumnRays"}}) {
     auto g = reporter.rates.find(gather), r = reporter.rates.find(raw);
     if (g == reporter.rates.end() || r == reporter.rates.end()) continue;
-    std::printf("%-22s %10.3g rays/s  raw %10.3g rays/s  ratio %.2f\n", gather, g->second, r->second,
-                g->second / r->second);
+    const std::vector<double>& gr = g->second;
+    const std::vector<double>& rr = r->second;
+    std::vector<double> paired;
+    for (size_t i = 0; i < std::min(gr.size(), rr.size()); ++i) paired.push_back(gr[i] / rr[i]);
+    std::printf("%-22s median %10.3g rays/s  raw median %10.3g rays/s  ratio %.2f  "
+                "(%zu repetitions, paired ratios %.2f..%.2f)\n",
+                gather, Median(gr), Median(rr), Median(gr) / Median(rr), gr.size(),
+                *std::min_element(paired.begin(), paired.end()),
+                *std::max_element(paired.begin(), paired.end()));
   }
   benchmark::Shutdown();
   return 0;

@@ -22,8 +22,112 @@ struct Unshadowed {
   float tfar = 0;
 };
 
-// Intensity light L sends towards a point seen from it along -w (w: unit, point → light);
-// zero where it does not emit. Shared by surface rows and eye-segment rows.
+// The Lambertian fast path's geometry for a batch of entries, one slot each: the direction to
+// the light, the combined side/hemisphere tests, |cos| at the light, |cos| at the receiver times
+// the (clamped) geometry term, and which offset end points the shadow ray uses. The same float
+// operations in the same order as LightingMatrix::DiffuseElement (bit-identical), written
+// without branches over plain arrays so the compiler vectorises the loop.
+struct DiffuseGeometryBatch {
+  alignas(16) std::array<float, kBatch> wx, wy, wz, abs_out, g, scale;
+  alignas(16) std::array<int32_t, kBatch> ok, back, light_back;
+};
+
+// Receiver inputs of the kernel: one receiver for the whole batch, or one per entry.
+struct FixedReceiver {
+  float p[3], n[3], ng[3], wo_z;
+  int32_t budget;
+  float P(int c, size_t) const { return p[c]; }
+  float N(int c, size_t) const { return n[c]; }
+  float Ng(int c, size_t) const { return ng[c]; }
+  float WoZ(size_t) const { return wo_z; }
+  int32_t Budget(size_t) const { return budget; }
+};
+struct ReceiverBatch {
+  alignas(16) std::array<float, kBatch> p[3], n[3], ng[3], wo_z;
+  alignas(16) std::array<int32_t, kBatch> budget;
+};
+struct ReceiverArrays {
+  const float *p[3], *n[3], *ng[3], *wo_z;
+  const int32_t* budget;
+  explicit ReceiverArrays(const ReceiverBatch& b)
+      : p{b.p[0].data(), b.p[1].data(), b.p[2].data()},
+        n{b.n[0].data(), b.n[1].data(), b.n[2].data()},
+        ng{b.ng[0].data(), b.ng[1].data(), b.ng[2].data()},
+        wo_z(b.wo_z.data()),
+        budget(b.budget.data()) {}
+  float P(int c, size_t m) const { return p[c][m]; }
+  float N(int c, size_t m) const { return n[c][m]; }
+  float Ng(int c, size_t m) const { return ng[c][m]; }
+  float WoZ(size_t m) const { return wo_z[m]; }
+  int32_t Budget(size_t m) const { return budget[m]; }
+};
+// Light inputs: one light for the whole batch, or consecutive lights from the matrix's arrays.
+struct FixedLight {
+  float p[3], n[3], ng[3], wi_z;
+  int32_t surface, two_sided, depth;
+  float P(int c, size_t) const { return p[c]; }
+  float N(int c, size_t) const { return n[c]; }
+  float Ng(int c, size_t) const { return ng[c]; }
+  float WiZ(size_t) const { return wi_z; }
+  int32_t Surface(size_t) const { return surface; }
+  int32_t TwoSided(size_t) const { return two_sided; }
+  int32_t Depth(size_t) const { return depth; }
+};
+struct LightArrays {
+  const float *p[3], *n[3], *ng[3], *wi_z;
+  const int32_t *surface, *two_sided, *depth;
+  float P(int c, size_t m) const { return p[c][m]; }
+  float N(int c, size_t m) const { return n[c][m]; }
+  float Ng(int c, size_t m) const { return ng[c][m]; }
+  float WiZ(size_t m) const { return wi_z[m]; }
+  int32_t Surface(size_t m) const { return surface[m]; }
+  int32_t TwoSided(size_t m) const { return two_sided[m]; }
+  int32_t Depth(size_t m) const { return depth[m]; }
+};
+
+// A sink that may skip the zero every entry gets before its value is known (RowSum: adding
+// +0 to a double sum that starts at +0 never changes its bits under round-to-nearest).
+template <typename SinkFn>
+concept SkipsZeroDefaults = SinkFn::kSkipsZeroDefaults;
+
+struct RowSumSink {
+  static constexpr bool kSkipsZeroDefaults = true;
+  RGBAccum* sum;
+  void operator()(size_t, RGB v) const { sum->Add(v); }
+};
+
+template <typename Receivers, typename Lights>
+void DiffuseGeometry(size_t count, const Receivers R, const Lights L, float clamp2,
+                     DiffuseGeometryBatch* __restrict out) {
+  const float inv_clamp2 = 1.f / clamp2;
+  for (size_t m = 0; m < count; ++m) {
+    float dx = L.P(0, m) - R.P(0, m), dy = L.P(1, m) - R.P(1, m), dz = L.P(2, m) - R.P(2, m);
+    float dist2 = dx * dx + dy * dy + dz * dz;
+    float inv_len = 1.f / std::sqrt(dist2);  // as Vec3::operator/
+    float wx = dx * inv_len, wy = dy * inv_len, wz = dz * inv_len;
+    float wi_z = wx * R.N(0, m) + wy * R.N(1, m) + wz * R.N(2, m);
+    float side = R.Ng(0, m) * wx + R.Ng(1, m) * wy + R.Ng(2, m) * wz;
+    float out_z = -(wx * L.N(0, m) + wy * L.N(1, m) + wz * L.N(2, m));
+    float light_side = wx * L.Ng(0, m) + wy * L.Ng(1, m) + wz * L.Ng(2, m);
+    int32_t surface = L.Surface(m);
+    int32_t emits = (surface & int32_t(!(light_side * out_z >= 0)) & int32_t(L.WiZ(m) * out_z > 0)) |
+                    ((1 - surface) & (int32_t(!(out_z <= 0)) | L.TwoSided(m)));
+    out->ok[m] = int32_t(L.Depth(m) <= R.Budget(m)) & int32_t(dist2 > 0) &
+                 int32_t(!(side * wi_z <= 0)) & int32_t(R.WoZ(m) * wi_z > 0) & emits;
+    // Both quotients unconditionally: a division under a condition keeps the loop scalar.
+    float inv_dist2 = 1.f / dist2, clamp_ratio = clamp2 / dist2;
+    bool clamped = dist2 < clamp2;
+    out->g[m] = std::abs(wi_z) * (clamped ? inv_clamp2 : inv_dist2);
+    out->scale[m] = clamped ? clamp_ratio : 1.f;
+    out->abs_out[m] = std::abs(out_z);
+    out->wx[m] = wx;
+    out->wy[m] = wy;
+    out->wz[m] = wz;
+    out->back[m] = int32_t(side < 0);
+    out->light_back[m] = int32_t(light_side > 0);
+  }
+}
+
 }  // namespace
 
 RGB LightIntensityTowards(const VirtualLight& L, Vec3 w, const std::vector<Material>& materials) {
@@ -88,19 +192,92 @@ LightingMatrix::LightingMatrix(const Scene& scene, const ReceiverSet& receivers,
     r.light_depth_budget = uint8_t(std::clamp(max_depth - int(sp.depth), 0, 255));
     r.medium_out = sp.medium_out;
     r.medium_in = sp.medium_in;
+    const Material& m = scene.materials()[sp.material];
+    RGB f = m.reflectance * kInvPi;  // EvalDiffuse's value on the lit side
+    r.diffuse = options.diffuse_fast_path && m.type == MaterialType::kDiffuse && !f.IsBlack();
+    r.throughput_f = r.throughput * f;
+    r.origin_front = OffsetRayOrigin(r.p, r.ng, r.ng);
+    r.origin_back = OffsetRayOrigin(r.p, r.ng, -r.ng);
   }
   light_frames_.resize(lights.size());
+  diffuse_lights_.resize(lights.size());
+  DiffuseLightArrays& a = light_arrays_;
+  for (auto* v : {&a.px, &a.py, &a.pz, &a.nx, &a.ny, &a.nz, &a.ngx, &a.ngy, &a.ngz, &a.wi_z})
+    v->resize(lights.size());
+  for (auto* v : {&a.surface, &a.two_sided, &a.depth}) v->resize(lights.size());
   for (size_t j = 0; j < lights.size(); ++j) {
     const VirtualLight& L = lights.lights[j];
-    if (L.kind != VirtualLightKind::kSurfaceVPL) continue;
-    light_frames_[j].frame = Frame(L.n);
-    light_frames_[j].wi_local = light_frames_[j].frame.ToLocal(L.wi);
+    DiffuseLight& d = diffuse_lights_[j];
+    // OffsetRayOrigin(p, ng, -w) moves to the ng side when -w·ng >= 0 (receiver in front).
+    d.target_front = OffsetRayOrigin(L.p, L.ng, L.ng);
+    d.target_back = OffsetRayOrigin(L.p, L.ng, -L.ng);
+    d.emission = L.power;
+    d.fast = options.diffuse_fast_path && L.kind == VirtualLightKind::kAreaVPL;
+    if (L.kind == VirtualLightKind::kSurfaceVPL) {
+      light_frames_[j].frame = Frame(L.n);
+      light_frames_[j].wi_local = light_frames_[j].frame.ToLocal(L.wi);
+      const Material& m = scene.materials()[L.material];
+      d.surface = true;
+      d.wi_z = light_frames_[j].wi_local.z;
+      d.emission = L.power * (m.reflectance * kInvPi);  // as L.power * EvalDiffuse(...)
+      d.fast = options.diffuse_fast_path && m.type == MaterialType::kDiffuse;
+    }
+    a.px[j] = L.p.x; a.py[j] = L.p.y; a.pz[j] = L.p.z;
+    a.nx[j] = L.n.x; a.ny[j] = L.n.y; a.nz[j] = L.n.z;
+    a.ngx[j] = L.ng.x; a.ngy[j] = L.ng.y; a.ngz[j] = L.ng.z;
+    a.wi_z[j] = d.wi_z;
+    a.surface[j] = d.surface;
+    a.two_sided[j] = L.two_sided;
+    a.depth[j] = L.depth;
   }
 }
 
-template <typename EntryFn, typename SinkFn>
+// Every step mirrors the general path in EvaluateBatched with the same float operations in the
+// same order (no FMA contraction on the baseline x86-64 target), so the bits agree; the savings
+// are the row/light invariants hoisted to the constructor and no BSDF dispatch. The side tests
+// reject about a third of the elements in no predictable order, so they are combined without
+// branches (a mispredicted branch costs as much as the arithmetic of a whole element); the
+// outputs are computed even for a rejected element, and then unused.
+inline bool LightingMatrix::DiffuseElement(const RowData& row, const VirtualLight& V,
+                                           const DiffuseLight& L, RGB* value,
+                                           float* scale_unclamped, Vec3* w, Vec3* origin,
+                                           Vec3* dir) const {
+  Vec3 d = V.p - row.p;
+  float dist2 = LengthSquared(d);
+  *w = d / std::sqrt(dist2);
+  float wi_z = Dot(*w, row.frame.n);
+  float side = Dot(row.ng, *w);
+  // The light's cosine towards the receiver: -w in the light's frame (exact negation).
+  float out_z = -Dot(*w, V.n);
+  float light_side = Dot(*w, V.ng);  // -(ng · -w), exactly
+  // Surface VPL: the general path's (ng·-w)·cos_out <= 0 test (ng·-w = -light_side exactly) and
+  // EvalDiffuse's same-hemisphere test at the light; area VPL: LightIntensityTowards' test.
+  bool emits = L.surface ? !(light_side * out_z >= 0) & (L.wi_z * out_z > 0)
+                         : !(out_z <= 0) | V.two_sided;
+  bool ok = (V.depth <= row.light_depth_budget) & (dist2 > 0) & !(side * wi_z <= 0) &
+            (row.wo_local.z * wi_z > 0) &  // EvalDiffuse: same hemisphere as wo
+            emits;
+  RGB intensity = L.emission * std::abs(out_z);
+  float geometry = 1.f / dist2;
+  *scale_unclamped = 1.f;
+  if (dist2 < clamp_distance2_) {  // area and surface VPLs are always clamped
+    geometry = 1.f / clamp_distance2_;
+    *scale_unclamped = clamp_distance2_ / dist2;
+  }
+  *value = row.throughput_f * intensity * (std::abs(wi_z) * geometry);
+  *origin = side < 0 ? row.origin_back : row.origin_front;
+  *dir = (light_side > 0 ? L.target_back : L.target_front) - *origin;
+  // Rare rejections (black or non-finite values, NaN rays) may branch.
+  return ok && !intensity.IsBlack() && !value->IsBlack() && value->IsFinite() &&
+         IsFinite(*origin) && IsFinite(*dir);
+}
+
+// Sink contract: sink(k, v) gets every entry's value; an entry whose value is zero may get that
+// zero more than once (the default, then again when its shadow ray is occluded), and a
+// SkipsZeroDefaults sink may not get it at all.
+template <typename EntryFn, typename SinkFn, LightingMatrix::BatchShape kShape>
 void LightingMatrix::EvaluateBatched(size_t n, EntryFn entry, SinkFn sink,
-                                     MatrixCounters* counters) const {
+                                     MatrixCounters* counters, uint32_t fixed) const {
   const std::vector<Material>& materials = scene_.materials();
   alignas(16) std::array<RTCRay, kBatch> rays;
   std::array<RGB, kBatch> values;
@@ -111,9 +288,77 @@ void LightingMatrix::EvaluateBatched(size_t n, EntryFn entry, SinkFn sink,
   std::array<int16_t, kBatch> start_medium;
   std::array<uint64_t, kBatch> entry_key;
   const bool media = scene_.has_media();
+  DiffuseGeometryBatch geo;  // the fast path's geometry of this batch, when `batched`
+  ReceiverBatch receivers;        // Column: the batch's receivers, for the geometry kernel
   for (size_t begin = 0; begin < n; begin += kBatch) {
     size_t count = std::min(kBatch, n - begin);
     size_t nrays = 0;
+    bool batched = false;
+    if constexpr (kShape == BatchShape::kRow) {
+      if (fixed < rows_.size() && rows_[fixed].diffuse) {
+        const RowData& r = rows_[fixed];
+        const FixedReceiver R{{r.p.x, r.p.y, r.p.z}, {r.frame.n.x, r.frame.n.y, r.frame.n.z},
+                              {r.ng.x, r.ng.y, r.ng.z}, r.wo_local.z, r.light_depth_budget};
+        const DiffuseLightArrays& a = light_arrays_;
+        const LightArrays L{{&a.px[begin], &a.py[begin], &a.pz[begin]},
+                            {&a.nx[begin], &a.ny[begin], &a.nz[begin]},
+                            {&a.ngx[begin], &a.ngy[begin], &a.ngz[begin]}, &a.wi_z[begin],
+                            &a.surface[begin], &a.two_sided[begin], &a.depth[begin]};
+        DiffuseGeometry(count, R, L, clamp_distance2_, &geo);
+        batched = true;
+      }
+    } else if constexpr (kShape == BatchShape::kColumn) {
+      if (diffuse_lights_[fixed].fast && !rows_.empty()) {
+        for (size_t k = 0; k < count; ++k) {
+          uint32_t ri, lj;
+          entry(begin + k, &ri, &lj);
+          // Other rows (eye segments) get a dummy receiver; their slot is never read.
+          const RowData& r = rows_[ri < rows_.size() ? ri : 0];
+          for (int c = 0; c < 3; ++c) {
+            receivers.p[c][k] = r.p[c];
+            receivers.n[c][k] = r.frame.n[c];
+            receivers.ng[c][k] = r.ng[c];
+          }
+          receivers.wo_z[k] = r.wo_local.z;
+          receivers.budget[k] = r.light_depth_budget;
+        }
+        const DiffuseLight& d = diffuse_lights_[fixed];
+        const VirtualLight& V = lights_.lights[fixed];
+        const FixedLight L{{V.p.x, V.p.y, V.p.z}, {V.n.x, V.n.y, V.n.z}, {V.ng.x, V.ng.y, V.ng.z},
+                           d.wi_z, d.surface, V.two_sided, V.depth};
+        DiffuseGeometry(count, ReceiverArrays(receivers), L, clamp_distance2_, &geo);
+        batched = true;
+      }
+    }
+    // Queues the shadow ray of entry k (unshadowed `value`) for this batch's rtcOccluded1M.
+    // keep = false writes the slot and leaves it to the next ray (no branch on the caller's test).
+    auto add_ray = [&](uint32_t ri, uint32_t lj, size_t k, RGB value, float scale_unclamped, Vec3 w,
+                       Vec3 o, Vec3 dir, float tfar, bool directional, bool keep) {
+      RTCRay& ray = rays[nrays];
+      ray.org_x = o.x; ray.org_y = o.y; ray.org_z = o.z;
+      ray.dir_x = dir.x; ray.dir_y = dir.y; ray.dir_z = dir.z;
+      ray.tnear = 0.f;
+      ray.tfar = tfar;
+      ray.time = 0.f;
+      ray.mask = 0xFFFFFFFFu;
+      ray.id = uint32_t(nrays);
+      ray.flags = 0;
+      if (media) {
+        // Generalized visibility (Huo 2016, Sec. 3): visibility × transmittance of the shadow
+        // segment, walked from the receiver's side (its medium is known) towards the light.
+        const RowData& row = rows_[ri];
+        origins[nrays] = o;
+        float len = directional ? kInfinity : Length(dir);
+        dirs[nrays] = directional ? dir : dir / len;
+        lengths[nrays] = directional ? kInfinity : len * tfar;
+        start_medium[nrays] = Dot(w, row.ng) > 0 ? row.medium_out : row.medium_in;
+        entry_key[nrays] = (uint64_t(ri) << 32) | lj;
+      }
+      values[nrays] = value;
+      unclamped[nrays] = scale_unclamped;
+      slot[nrays] = uint32_t(k);
+      nrays += keep ? 1 : 0;
+    };
     for (size_t k = 0; k < count; ++k) {
       uint32_t ri, lj;
       entry(begin + k, &ri, &lj);
@@ -123,13 +368,36 @@ void LightingMatrix::EvaluateBatched(size_t n, EntryFn entry, SinkFn sink,
         continue;
       }
       const RowData& row = rows_[ri];
+      if constexpr (!SkipsZeroDefaults<SinkFn>)
+        sink(begin + k, RGB(0.f));  // default: zero unless visible below
+      if (row.diffuse && diffuse_lights_[lj].fast) {
+        RGB value;
+        float scale_unclamped;
+        Vec3 w, o, dir;
+        const DiffuseLight& DL = diffuse_lights_[lj];
+        bool keep;
+        if (batched) {
+          // The rest of DiffuseElement from the batch's geometry.
+          RGB intensity = DL.emission * geo.abs_out[k];
+          value = row.throughput_f * intensity * geo.g[k];
+          scale_unclamped = geo.scale[k];
+          w = {geo.wx[k], geo.wy[k], geo.wz[k]};
+          o = geo.back[k] ? row.origin_back : row.origin_front;
+          dir = (geo.light_back[k] ? DL.target_back : DL.target_front) - o;
+          keep = geo.ok[k] && !intensity.IsBlack() && !value.IsBlack() && value.IsFinite() &&
+                 IsFinite(o) && IsFinite(dir);
+        } else {
+          keep = DiffuseElement(row, lights_.lights[lj], DL, &value, &scale_unclamped, &w, &o, &dir);
+        }
+        add_ray(ri, lj, k, value, scale_unclamped, w, o, dir, 1.f - 1e-4f, false, keep);
+        continue;
+      }
       const VirtualLight& L = lights_.lights[lj];
       if (L.IsRay()) {
         // VRL column: an integral along the light, with its own batch of samples.
         sink(begin + k, VrlPointElement(ri, lj, counters));
         continue;
       }
-      sink(begin + k, RGB(0.f));  // default: zero unless visible below
       if (L.depth > row.light_depth_budget) continue;
       // Direction to the light and the light's side of the element.
       Vec3 w;
@@ -171,7 +439,6 @@ void LightingMatrix::EvaluateBatched(size_t n, EntryFn entry, SinkFn sink,
       RGB value = row.throughput * f * intensity * (std::abs(wi_local.z) * geometry);
       if (value.IsBlack() || !value.IsFinite()) continue;
       // Shadow ray between offset end points; dir is left unnormalised with tfar just short of 1.
-      RTCRay& ray = rays[nrays];
       Vec3 o = OffsetRayOrigin(row.p, row.ng, w);
       Vec3 dir;
       float tfar;
@@ -186,28 +453,7 @@ void LightingMatrix::EvaluateBatched(size_t n, EntryFn entry, SinkFn sink,
         tfar = 1.f - 1e-4f;
       }
       if (!IsFinite(o) || !IsFinite(dir)) continue;  // never hand Embree a NaN ray
-      ray.org_x = o.x; ray.org_y = o.y; ray.org_z = o.z;
-      ray.dir_x = dir.x; ray.dir_y = dir.y; ray.dir_z = dir.z;
-      ray.tnear = 0.f;
-      ray.tfar = tfar;
-      ray.time = 0.f;
-      ray.mask = 0xFFFFFFFFu;
-      ray.id = uint32_t(nrays);
-      ray.flags = 0;
-      if (media) {
-        // Generalized visibility (Huo 2016, Sec. 3): visibility × transmittance of the shadow
-        // segment, walked from the receiver's side (its medium is known) towards the light.
-        origins[nrays] = o;
-        float len = L.IsDirectional() ? kInfinity : Length(dir);
-        dirs[nrays] = L.IsDirectional() ? dir : dir / len;
-        lengths[nrays] = L.IsDirectional() ? kInfinity : len * tfar;
-        start_medium[nrays] = Dot(w, row.ng) > 0 ? row.medium_out : row.medium_in;
-        entry_key[nrays] = (uint64_t(ri) << 32) | lj;
-      }
-      values[nrays] = value;
-      unclamped[nrays] = scale_unclamped;
-      slot[nrays] = uint32_t(k);
-      ++nrays;
+      add_ray(ri, lj, k, value, scale_unclamped, w, o, dir, tfar, L.IsDirectional(), true);
     }
     counters->elements += count;
     if (nrays == 0) continue;
@@ -215,16 +461,18 @@ void LightingMatrix::EvaluateBatched(size_t n, EntryFn entry, SinkFn sink,
     scene_.Occluded(rays.data(), nrays);
     counters->shadow_rays += nrays;
     for (size_t r = 0; r < nrays; ++r) {
-      if (!(rays[r].tfar >= 0.f)) continue;  // occluded: Embree sets tfar = -inf
-      if (media) {
+      bool lit = rays[r].tfar >= 0.f;  // occluded: Embree sets tfar = -inf
+      if (media && lit) {
         // Seeded by the element, so an element has the same value whichever method asks.
         Rng rng(HashSeed({uint64_t(RngStream::kMedium), entry_key[r]}));
         values[r] *= scene_.TransmittanceAlong(origins[r], dirs[r], lengths[r], start_medium[r], rng);
         ++counters->transmittance_evals;
-        if (values[r].IsBlack()) continue;
+        lit = !values[r].IsBlack();
       }
-      sink(begin + slot[r], values[r]);
-      if (unclamped[r] != 1.f) {
+      // An unlit entry is sent its zero again rather than skipped: no branch on the visibility
+      // (unpredictable), and the same result for every sink (a store, or adding +0 to a sum).
+      sink(begin + slot[r], lit ? values[r] : RGB(0.f));
+      if (unclamped[r] != 1.f && lit) {
         float lum = values[r].Luminance();
         counters->clamp_lost += double(lum) * double(unclamped[r] - 1.f);
         counters->clamp_kept += double(lum);
@@ -249,26 +497,29 @@ RGB LightingMatrix::Element(uint32_t row, uint32_t col, MatrixCounters* counters
 }
 
 void LightingMatrix::Row(uint32_t row, std::span<RGB> out, MatrixCounters* counters) const {
-  EvaluateBatched(
-      cols(), [&](size_t k, uint32_t* r, uint32_t* c) { *r = row; *c = uint32_t(k); },
-      [&](size_t k, RGB v) { out[k] = v; }, counters);
+  auto entry = [&](size_t k, uint32_t* r, uint32_t* c) { *r = row; *c = uint32_t(k); };
+  auto store = [&](size_t k, RGB v) { out[k] = v; };
+  EvaluateBatched<decltype(entry), decltype(store), BatchShape::kRow>(cols(), entry, store,
+                                                                      counters, row);
 }
 
 RGBAccum LightingMatrix::RowSum(uint32_t row, MatrixCounters* counters) const {
   RGBAccum sum;
   // Values arrive per batch in light order (zeros first, then visible ones), so the double sum
   // is independent of threading.
-  EvaluateBatched(
-      cols(), [&](size_t k, uint32_t* r, uint32_t* c) { *r = row; *c = uint32_t(k); },
-      [&](size_t, RGB v) { sum.Add(v); }, counters);
+  auto entry = [&](size_t k, uint32_t* r, uint32_t* c) { *r = row; *c = uint32_t(k); };
+  RowSumSink add{&sum};
+  EvaluateBatched<decltype(entry), decltype(add), BatchShape::kRow>(cols(), entry, add, counters,
+                                                                    row);
   return sum;
 }
 
 void LightingMatrix::Column(uint32_t col, std::span<const uint32_t> rows, std::span<RGB> out,
                             MatrixCounters* counters) const {
-  EvaluateBatched(
-      rows.size(), [&](size_t k, uint32_t* r, uint32_t* c) { *r = rows[k]; *c = col; },
-      [&](size_t k, RGB v) { out[k] = v; }, counters);
+  auto entry = [&](size_t k, uint32_t* r, uint32_t* c) { *r = rows[k]; *c = col; };
+  auto store = [&](size_t k, RGB v) { out[k] = v; };
+  EvaluateBatched<decltype(entry), decltype(store), BatchShape::kColumn>(rows.size(), entry, store,
+                                                                         counters, col);
 }
 
 }  // namespace lightfarm

@@ -21,6 +21,9 @@ struct MatrixOptions {
   // Samples per element of an eye-segment row (equi-angular sampling along the segment), and
   // per element of a VRL column (vrl_element.cpp).
   int segment_samples = 4;
+  // The Lambertian fast path of surface elements (see LightingMatrix::DiffuseElement). It gives
+  // the same bits as the general path; false forces the general path (tests compare the two).
+  bool diffuse_fast_path = true;
 };
 
 // Per-caller counters (no atomics in the hot path; callers sum them).
@@ -86,7 +89,26 @@ class LightingMatrix {
     uint32_t material;
     uint8_t light_depth_budget;  // max light-path depth this receiver may connect to
     int16_t medium_out, medium_in;  // media on the ng / -ng side (ShadingPoint)
+    // Lambertian receiver (diffuse_fast_path): throughput · f, constant over the row, and the
+    // shadow-ray origins OffsetRayOrigin gives for lights on the ng / -ng side.
+    bool diffuse = false;
+    RGB throughput_f;
+    Vec3 origin_front, origin_back;
   };
+  // Per light, what the Lambertian fast path adds to the VirtualLight: area VPLs and surface VPLs
+  // on Lambertian materials (other kinds and materials take the general path).
+  struct DiffuseLight {
+    RGB emission;        // area VPL: power; surface VPL: power · reflectance/π
+    // Shadow-ray end points OffsetRayOrigin(p, ng, -w) gives for receivers on the ng / -ng side.
+    Vec3 target_front, target_back;
+    float wi_z = 0;      // surface VPL: cos of the arrival direction in its shading frame
+    bool fast = false;   // takes the fast path
+    bool surface = false;  // surface VPL (else area VPL)
+  };
+  // The unshadowed value of a Lambertian receiver × fast light element; false when it is zero.
+  // Bit-identical to the general path in EvaluateBatched.
+  bool DiffuseElement(const RowData& row, const VirtualLight& V, const DiffuseLight& L, RGB* value,
+                      float* scale_unclamped, Vec3* w, Vec3* origin, Vec3* dir) const;
   // One element of an eye-segment row (Huo 2016, Eq. 4: light → eye segment): the integral of
   // in-scattered light along the segment, by equi-angular sampling (Kulla & Fajardo 2012) for
   // point-like lights and transmittance-proportional sampling for directional ones.
@@ -95,9 +117,14 @@ class LightingMatrix {
   // segment (Eq. 3), each `segment_samples` samples with one batch of shadow rays.
   RGB VrlPointElement(uint32_t point_row, uint32_t col, MatrixCounters* counters) const;
   RGB VrlSegmentElement(uint32_t segment, uint32_t col, MatrixCounters* counters) const;
+  // Which entries a batched evaluation visits: arbitrary ones, one row against consecutive
+  // lights (Row, RowSum: `fixed` = the row), or one light against a row list (Column: `fixed` =
+  // the light). The last two run the fast path's geometry a batch at a time (vectorised).
+  enum class BatchShape { kEntries, kRow, kColumn };
   // Evaluates up to kBatch entries (unshadowed value + shadow ray), then visibility.
-  template <typename EntryFn, typename SinkFn>
-  void EvaluateBatched(size_t n, EntryFn entry, SinkFn sink, MatrixCounters* counters) const;
+  template <typename EntryFn, typename SinkFn, BatchShape kShape = BatchShape::kEntries>
+  void EvaluateBatched(size_t n, EntryFn entry, SinkFn sink, MatrixCounters* counters,
+                       uint32_t fixed = 0) const;
 
   const Scene& scene_;
   const ReceiverSet& receivers_;
@@ -110,6 +137,14 @@ class LightingMatrix {
     Vec3 wi_local;
   };
   std::vector<SurfaceLightFrame> light_frames_;
+  std::vector<DiffuseLight> diffuse_lights_;
+  // The fast path's geometric inputs per light, field by field (structure of arrays), so the
+  // geometry of a row against a batch of consecutive lights vectorises.
+  struct DiffuseLightArrays {
+    std::vector<float> px, py, pz, nx, ny, nz, ngx, ngy, ngz, wi_z;
+    std::vector<int32_t> surface, two_sided, depth;
+  };
+  DiffuseLightArrays light_arrays_;
   float clamp_distance_ = 0, clamp_distance2_ = 0;
   mutable std::vector<RTCRay>* recorded_rays_ = nullptr;
   int segment_samples_ = 4;
