@@ -184,8 +184,10 @@ TEST(MediaHardCases, AllZeroGridIsNoMedium) {
 
 // One voxel of density 1e4 (σ_t = 2e4) in an 8³ grid of zeros: the pixels whose vertical rays
 // miss its footprint (trilinear interpolation spreads it over one voxel each way) keep the
-// floor's 0.5 (plus ~1e-4 the voxel scatters onto the floor); the ones through it lose the floor and show only the light the voxel scatters
-// back (albedo 0.5, isotropic: ~0.06); nothing is NaN or brighter than the light allows.
+// floor's 0.5 (plus ~1e-4 the voxel scatters onto the floor); the ones through it lose the floor
+// and show only the light the voxel scatters back (albedo 0.5, isotropic: ~0.06); nothing is NaN
+// or brighter than the light allows. (Density 1e3 leaves the footprint's corners, at 1/16 of the
+// peak, half transparent.)
 TEST(MediaHardCases, GridWithOneDenseVoxel) {
   TempDir dir;
   const int n = 8, vi = 2, vj = 5, vk = 3;
