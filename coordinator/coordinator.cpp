@@ -517,7 +517,10 @@ bool Coordinator::Complete(const std::string& worker_id, const std::string& leas
     return false;
   }
   if (!problem.empty()) {
-    RecordFailureLocked(*job, ref.task, worker_id, problem);
+    // Only the lease's holder fails the task: a malformed result from any other worker (a stale
+    // or borrowed lease id) must not count towards max_attempts and fail the job.
+    if (task->state == TaskStateCode::kLeased && task->worker == worker_id)
+      RecordFailureLocked(*job, ref.task, worker_id, problem);
     throw FarmError(Code::kInvalidArgument, problem);
   }
   task->state = TaskStateCode::kDone;

@@ -374,6 +374,15 @@ TEST(FarmBadRpcs, WorkerCallsOutOfOrderGetPreciseCodesAndCannotFailAJob) {
               StatusCode::FAILED_PRECONDITION);
     EXPECT_EQ(fail(b, job2 + ".0.0." + std::to_string(1000000 + i)), StatusCode::FAILED_PRECONDITION);
   }
+  // b sends junk on the lease a holds: malformed (INVALID_ARGUMENT), but not a's failure.
+  v1::LeaseTaskResponse held;
+  ASSERT_EQ(lease(a, &held), StatusCode::OK);
+  ASSERT_TRUE(held.has_task());
+  for (int i = 0; i < 3; ++i)
+    EXPECT_EQ(Complete(*stub, {ResultChunk(b, held.lease_id(), "junk", 4)}).error_code(),
+              StatusCode::INVALID_ARGUMENT);
+  EXPECT_EQ(client.GetJob(job2).state(), v1::JOB_STATE_RUNNING);
+  // a's lease expires; a real worker finishes the job.
   auto worker = StartWorker(dir, coordinator.address());
   const v1::JobStatus done2 = WaitForJob(client, job2, [](const v1::JobStatus&) { return false; }, 120);
   EXPECT_EQ(done2.state(), v1::JOB_STATE_DONE) << done2.error();
