@@ -1,4 +1,5 @@
 #include "cli/farm_options.h"
+#include "coordinator/cli_validators.h"
 
 #include <cstdio>
 #include <filesystem>
@@ -13,11 +14,13 @@ namespace lightfarm::cli {
 namespace fs = std::filesystem;
 
 void AddServerOptions(CLI::App* cmd, ServerArgs& a) {
-  cmd->add_option("--server", a.server, "Coordinator HOST:PORT")->required();
+  cmd->add_option("--server", a.server, "Coordinator HOST:PORT")
+      ->required()
+      ->check(CLI::Validator([](std::string& v) { return HostPortProblem(v, false); }, "HOST:PORT"));
   cmd->add_option("--token-file", a.token_file, "File holding the bearer token");
   cmd->add_flag("--tls", a.tls, "Connect with TLS");
   cmd->add_option("--tls-ca", a.tls_ca, "PEM root certificates for TLS (default: system)");
-  cmd->add_option("--timeout", a.timeout, "Seconds allowed for each request")->check(CLI::PositiveNumber);
+  cmd->add_option("--timeout", a.timeout, "Seconds allowed for each request")->check(FiniteRange(0.001, 1e6));
 }
 
 std::unique_ptr<RenderClient> ConnectToCoordinator(const ServerArgs& a) {

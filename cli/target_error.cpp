@@ -1,4 +1,5 @@
 #include "cli/target_error.h"
+#include "coordinator/cli_validators.h"
 
 #include <cstdio>
 #include <cstdlib>
@@ -22,7 +23,7 @@ void AddTargetErrorOptions(CLI::App* cmd, TargetErrorArgs& a) {
   cmd->add_option("--target-error", a.target,
                   "Choose the method's parameters to reach this rel_l2 (e.g. 0.02) from the "
                   "scene's bench results, else documented defaults")
-      ->check(CLI::Range(0.0, 1.0));
+      ->check(FiniteRange(0.0, 1.0));
   cmd->add_option("--bench-dir", a.bench_dir,
                   "With --target-error: a `lightfarm bench` output dir (its results.csv)");
   cmd->add_option("--bench-cache", a.cache_dir,

@@ -8,6 +8,7 @@
 #include <iostream>
 
 #include "cli/commands.h"
+#include "coordinator/cli_validators.h"
 #include "cli/farm_options.h"
 #include "cli/progress.h"
 #include "common/farm/proto_convert.h"
@@ -27,7 +28,7 @@ void AddWatchCommand(CLI::App& app) {
   AddServerOptions(cmd, args->server);
   cmd->add_option("--preview", args->preview, "Keep this PNG updated with the finished tiles");
   cmd->add_option("--preview-interval", args->preview_interval, "Seconds between previews")
-      ->check(CLI::Range(0.25, 3600.0));
+      ->check(FiniteRange(0.25, 3600.0));
   cmd->callback([args] {
     auto client = ConnectToCoordinator(args->server);
     ProgressBar bar;

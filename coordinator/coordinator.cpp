@@ -20,6 +20,46 @@ using Code = FarmError::Code;
 
 namespace {
 
+// `text` with every byte that is not part of a well-formed UTF-8 sequence replaced by '?'.
+// Proto3 string fields must be valid UTF-8: an error message quoting a binary scene file would
+// otherwise make every JobStatus holding it unparseable for the client (GetJob, ListJobs and
+// WatchJob of that job all failed).
+std::string ValidUtf8(const std::string& text) {
+  std::string out;
+  out.reserve(text.size());
+  const auto* s = reinterpret_cast<const unsigned char*>(text.data());
+  const size_t n = text.size();
+  for (size_t i = 0; i < n;) {
+    const unsigned c = s[i];
+    size_t len = 0;
+    unsigned lo = 0x80, hi = 0xBF;  // range of the second byte (overlongs, surrogates, > U+10FFFF)
+    if (c < 0x80) len = 1;
+    else if (c >= 0xC2 && c <= 0xDF) len = 2;
+    else if (c >= 0xE0 && c <= 0xEF) {
+      len = 3;
+      if (c == 0xE0) lo = 0xA0;
+      if (c == 0xED) hi = 0x9F;
+    } else if (c >= 0xF0 && c <= 0xF4) {
+      len = 4;
+      if (c == 0xF0) lo = 0x90;
+      if (c == 0xF4) hi = 0x8F;
+    }
+    bool ok = len > 0 && i + len <= n;
+    for (size_t k = 1; ok && k < len; ++k) {
+      const unsigned b = s[i + k];
+      ok = k == 1 ? (b >= lo && b <= hi) : (b >= 0x80 && b <= 0xBF);
+    }
+    if (ok) {
+      out.append(text, i, len);
+      i += len;
+    } else {
+      out += '?';
+      ++i;
+    }
+  }
+  return out;
+}
+
 double Seconds(std::chrono::steady_clock::duration d) {
   return std::chrono::duration<double>(d).count();
 }
@@ -206,7 +246,7 @@ v1::JobStatus Coordinator::StatusLocked(const Job& job) const {
   st.set_stage_name(job.stage_name);
   st.set_tasks_done(job.tasks_done);
   st.set_tasks_total(job.tasks.size());
-  st.set_error(job.error);
+  st.set_error(ValidUtf8(job.error));
   st.set_attempts(job.attempts_total);
   st.set_tasks_completed_total(job.completions_total);
   st.set_eta_s(-1);
@@ -338,8 +378,29 @@ bool Coordinator::ParseLease(const std::string& lease_id, LeaseRef* ref) {
   char tail = 0;
   if (std::sscanf(lease_id.c_str(), "%llu.%d.%u.%llu%c", &job, &stage, &task, &attempt, &tail) != 4)
     return false;
-  *ref = LeaseRef{int64_t(job), stage, task};
+  *ref = LeaseRef{int64_t(job), stage, task, uint64_t(attempt)};
   return true;
+}
+
+void Coordinator::CheckLeaseLocked(const std::string& worker_id, const std::string& lease_id,
+                                   const LeaseRef& ref) {
+  if (!workers_.count(worker_id))
+    throw FarmError(Code::kNotFound, "unknown worker \"" + worker_id.substr(0, 80) + "\"; register again");
+  auto it = jobs_.find(ref.job);
+  if (it == jobs_.end())
+    throw FarmError(Code::kNotFound, "lease " + lease_id + " names job " + std::to_string(ref.job) +
+                                         ", which this coordinator does not have");
+  const Job& job = it->second;
+  const auto never_granted = [&] {
+    return FarmError(Code::kFailedPrecondition, "lease " + lease_id + " was never granted");
+  };
+  if (ref.stage > job.stage || ref.stage < 0) throw never_granted();
+  if (job.state != v1::JOB_STATE_RUNNING || ref.stage < job.stage) return;  // over: stale
+  if (ref.task >= job.tasks.size()) throw never_granted();
+  const Task& task = job.tasks[ref.task];
+  // attempt_row is 0 for tasks restored after a restart: their leases cannot be told apart.
+  if (task.attempts == 0 || (task.attempt_row > 0 && ref.attempt > uint64_t(task.attempt_row)))
+    throw never_granted();
 }
 
 Coordinator::Task* Coordinator::FindTaskLocked(const LeaseRef& ref, Job** job_out) {
@@ -405,6 +466,7 @@ bool Coordinator::Heartbeat(const std::string& worker_id, const std::string& lea
   LeaseRef ref;
   if (!ParseLease(lease_id, &ref)) throw FarmError(Code::kInvalidArgument, "malformed lease id");
   std::lock_guard lock(mu_);
+  CheckLeaseLocked(worker_id, lease_id, ref);
   Job* job = nullptr;
   Task* task = FindTaskLocked(ref, &job);
   if (!task || task->state == TaskStateCode::kDone) return false;
@@ -424,6 +486,7 @@ bool Coordinator::Complete(const std::string& worker_id, const std::string& leas
   bool final_stage = false;
   {
     std::lock_guard lock(mu_);
+    CheckLeaseLocked(worker_id, lease_id, ref);
     Job* job = nullptr;
     Task* task = FindTaskLocked(ref, &job);
     if (!task || task->state == TaskStateCode::kDone) {
@@ -454,7 +517,10 @@ bool Coordinator::Complete(const std::string& worker_id, const std::string& leas
     return false;
   }
   if (!problem.empty()) {
-    RecordFailureLocked(*job, ref.task, worker_id, problem);
+    // Only the lease's holder fails the task: a malformed result from any other worker (a stale
+    // or borrowed lease id) must not count towards max_attempts and fail the job.
+    if (task->state == TaskStateCode::kLeased && task->worker == worker_id)
+      RecordFailureLocked(*job, ref.task, worker_id, problem);
     throw FarmError(Code::kInvalidArgument, problem);
   }
   task->state = TaskStateCode::kDone;
@@ -479,6 +545,7 @@ void Coordinator::Fail(const std::string& worker_id, const std::string& lease_id
   LeaseRef ref;
   if (!ParseLease(lease_id, &ref)) throw FarmError(Code::kInvalidArgument, "malformed lease id");
   std::lock_guard lock(mu_);
+  CheckLeaseLocked(worker_id, lease_id, ref);
   Job* job = nullptr;
   Task* task = FindTaskLocked(ref, &job);
   if (!task || task->state != TaskStateCode::kLeased || task->worker != worker_id) return;

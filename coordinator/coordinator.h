@@ -157,12 +157,17 @@ class Coordinator {
     int64_t job;
     int stage;
     uint32_t task;
+    uint64_t attempt;  // the attempt's row in the store: increasing, so a later one was never granted
   };
 
   Job& FindJob(const std::string& job_id);  // throws NOT_FOUND; caller holds mu_
   v1::JobStatus StatusLocked(const Job& job) const;
   static bool ParseLease(const std::string& lease_id, LeaseRef* ref);
   Task* FindTaskLocked(const LeaseRef& ref, Job** job);
+  // Worker calls on a lease: NOT_FOUND for a worker or job the coordinator does not know,
+  // FAILED_PRECONDITION for a lease it never granted. A lease that was granted and has since
+  // expired, been re-leased or finished passes (the callers answer "stop" or "duplicate").
+  void CheckLeaseLocked(const std::string& worker_id, const std::string& lease_id, const LeaseRef& ref);
   void RecordFailureLocked(Job& job, uint32_t task_id, const std::string& worker,
                            const std::string& reason);
   void FailJobLocked(Job& job, const std::string& error);

@@ -7,17 +7,23 @@
 #include <xmmintrin.h>
 
 #include <CLI/CLI.hpp>
+#include <grpc/support/log.h>
 #include <csignal>
 #include <iostream>
 #include <thread>
 
 #include "coordinator/render_client.h"
+#include "coordinator/cli_validators.h"
 #include "coordinator/services.h"
 
 namespace {
 
 volatile std::sig_atomic_t g_stop = 0;
 void OnSignal(int) { g_stop = 1; }
+
+// gRPC's own log lines go to our logger at debug level: a failed bind is reported once, as the
+// coordinator's one-line error, not as gRPC's multi-line dump beside it.
+void GrpcLogToDebug(gpr_log_func_args* args) { spdlog::debug("grpc: {}", args->message); }
 
 }  // namespace
 
@@ -32,28 +38,46 @@ int main(int argc, char** argv) {
   lightfarm::ServerConfig server;
   std::string token_file, log_level = "info";
   double max_blob_mb = 1024, drain_s = 10;
-  app.add_option("--listen", server.listen, "gRPC HOST:PORT (port 0: pick one, printed)")->required();
+  const CLI::Validator listen_address(
+      [](std::string& v) { return lightfarm::HostPortProblem(v, true); }, "HOST:PORT");
+  const CLI::Validator log_levels =
+      CLI::IsMember({"trace", "debug", "info", "warn", "error", "critical", "off"});
+  app.add_option("--listen", server.listen, "gRPC HOST:PORT (port 0: pick one, printed)")
+      ->required()
+      ->check(listen_address);
   app.add_option("--state-dir", opt.state_dir, "SQLite state and blob store")->required();
   app.add_option("--token-file", token_file, "Bearer token required on every RPC");
   app.add_option("--tls-cert", server.tls_cert, "PEM certificate chain (TLS)");
   app.add_option("--tls-key", server.tls_key, "PEM private key (TLS)");
-  app.add_option("--metrics-listen", server.metrics_listen, "HOST:PORT serving Prometheus /metrics");
+  app.add_option("--metrics-listen", server.metrics_listen, "HOST:PORT serving Prometheus /metrics")
+      ->check(listen_address);
   app.add_option("--lease-timeout", opt.lease_timeout_s, "Seconds a lease lives without a heartbeat")
-      ->check(CLI::Range(0.05, 86400.0));
+      ->check(lightfarm::FiniteRange(0.05, 86400.0));
   app.add_option("--max-attempts", opt.max_attempts, "Failed attempts before a task (and its job) fails")
       ->check(CLI::Range(1, 100));
-  app.add_option("--max-blob-mb", max_blob_mb, "Largest blob accepted, MiB")->check(CLI::PositiveNumber);
+  app.add_option("--max-blob-mb", max_blob_mb, "Largest blob accepted, MiB")->check(lightfarm::FiniteRange(0.001, 1e9));
   app.add_option("--max-resolution", opt.max_resolution, "Largest image side in pixels")->check(CLI::Range(1, 1 << 20));
-  app.add_option("--max-lights", opt.max_lights, "Most virtual lights a job may request");
+  app.add_option("--max-lights", opt.max_lights, "Most virtual lights a job may request")
+      ->check(CLI::Range(uint64_t(1), uint64_t(1) << 40));
   app.add_option("--max-spp", opt.max_spp, "Most samples per pixel a job may request")->check(CLI::Range(1, 1 << 20));
   app.add_option("--max-active-jobs", opt.max_active_jobs, "Jobs planned or running at once")->check(CLI::Range(1, 10000));
   app.add_option("--max-queued-jobs", opt.max_queued_jobs, "Unfinished jobs accepted")->check(CLI::Range(1, 1000000));
   app.add_option("--planner-threads", opt.planner_threads, "Threads planning and combining jobs")->check(CLI::Range(1, 64));
   app.add_option("--rpc-threads", server.rpc_threads, "Threads serving RPCs")->check(CLI::Range(1, 256));
-  app.add_option("--drain-seconds", drain_s, "Grace period for in-flight RPCs on SIGTERM");
-  app.add_option("--log-level", log_level, "trace|debug|info|warn|error");
-  CLI11_PARSE(app, argc, argv);
+  app.add_option("--drain-seconds", drain_s, "Grace period for in-flight RPCs on SIGTERM")
+      ->check(lightfarm::FiniteRange(0.0, 86400.0));
+  app.add_option("--log-level", log_level, "trace|debug|info|warn|error")->check(log_levels);
+  // One line on stderr for a bad option (CLI11_PARSE adds a second, "Run with --help ...").
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::Success& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    std::cerr << "lightfarm-coordinator: " << e.what() << "\n";
+    return 2;
+  }
   spdlog::set_level(spdlog::level::from_str(log_level));
+  gpr_set_log_function(GrpcLogToDebug);
   try {
     opt.max_blob_bytes = uint64_t(max_blob_mb * 1024.0 * 1024.0);
     server.token = lightfarm::ReadTokenFile(token_file);

@@ -63,6 +63,21 @@ void ThrowIfError(const grpc::Status& status) {
   if (!status.ok()) throw RpcError(status);
 }
 
+std::string HostPortProblem(const std::string& address, bool listen) {
+  for (const char* scheme : {"unix:", "unix-abstract:", "dns:", "ipv4:", "ipv6:"})
+    if (address.rfind(scheme, 0) == 0) return "";
+  const size_t colon = address.rfind(':');
+  if (colon == std::string::npos) return "\"" + address + "\" is not HOST:PORT";
+  const std::string host = address.substr(0, colon), port = address.substr(colon + 1);
+  if (host.empty() || host == "[]") return "\"" + address + "\" has no host (HOST:PORT)";
+  if (port.empty() || port.size() > 5 || port.find_first_not_of("0123456789") != std::string::npos)
+    return "\"" + address + "\": the port must be a number";
+  const int value = std::stoi(port);
+  if (value > 65535 || (value == 0 && !listen))
+    return "\"" + address + "\": port " + port + (listen ? " is not in 0..65535" : " is not in 1..65535");
+  return "";
+}
+
 std::shared_ptr<grpc::Channel> MakeChannel(const ChannelOptions& o) {
   std::shared_ptr<grpc::ChannelCredentials> creds;
   // A CA file means TLS: `--tls-ca F` alone must not fall back to plaintext (the worker did).

@@ -35,6 +35,12 @@ struct ChannelOptions {
 };
 std::shared_ptr<grpc::Channel> MakeChannel(const ChannelOptions& options);
 
+// What is wrong with a HOST:PORT option value ("" when nothing): an empty host, a missing or
+// non-numeric port, a port outside 1..65535 (0 too when `listen`: pick a free one). gRPC target
+// URIs (unix:PATH, dns:, ipv4:, ipv6:) are passed through unchecked. Without this check a typo
+// made the worker and the CLI retry an unreachable address until their timeout.
+std::string HostPortProblem(const std::string& address, bool listen);
+
 // Reads a token file (surrounding whitespace removed); "" for an empty path.
 std::string ReadTokenFile(const std::string& path);
 

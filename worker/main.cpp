@@ -12,6 +12,7 @@
 #include <thread>
 
 #include "coordinator/render_client.h"
+#include "coordinator/cli_validators.h"
 #include "worker/worker.h"
 
 namespace {
@@ -33,20 +34,32 @@ int main(int argc, char** argv) {
   std::string token_file, log_level = "info";
   int threads = 0;
   double cache_gb = 4;
-  app.add_option("--coordinator", channel.address, "Coordinator HOST:PORT")->required();
+  app.add_option("--coordinator", channel.address, "Coordinator HOST:PORT")
+      ->required()
+      ->check(CLI::Validator([](std::string& v) { return lightfarm::HostPortProblem(v, false); },
+                             "HOST:PORT"));
   app.add_option("--threads", threads, "Threads for tasks (0 = all cores)")->check(CLI::Range(0, 4096));
   app.add_option("--cache-dir", options.cache_dir, "Blob cache directory (default: temporary)");
-  app.add_option("--cache-gb", cache_gb, "Blob cache bound in GiB")->check(CLI::PositiveNumber);
+  app.add_option("--cache-gb", cache_gb, "Blob cache bound in GiB")->check(lightfarm::FiniteRange(0.001, 1e6));
   app.add_option("--token-file", token_file, "File holding the bearer token");
   app.add_flag("--tls", channel.tls, "Connect with TLS");
   app.add_option("--tls-ca", channel.tls_ca, "PEM root certificates for TLS (default: system)");
   app.add_option("--name", options.name, "Worker name shown by the coordinator");
   app.add_option("--poll-interval", options.idle_poll_s, "Seconds between polls while idle")
-      ->check(CLI::Range(0.001, 60.0));
-  app.add_option("--log-level", log_level, "trace|debug|info|warn|error");
+      ->check(lightfarm::FiniteRange(0.001, 60.0));
+  app.add_option("--log-level", log_level, "trace|debug|info|warn|error")
+      ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error", "critical", "off"}));
   // Hidden: lets tests pretend to be a worker of another protocol version.
   app.add_option("--protocol-version", options.protocol_version)->group("");
-  CLI11_PARSE(app, argc, argv);
+  // One line on stderr for a bad option (CLI11_PARSE adds a second, "Run with --help ...").
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::Success& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    std::cerr << "lightfarm-worker: " << e.what() << "\n";
+    return 2;
+  }
   spdlog::set_level(spdlog::level::from_str(log_level));
 
   try {

@@ -271,6 +271,12 @@ class SparseCompletionGather final : public GatherMethod {
     options.rank = s_.rank;
     options.max_iterations = s_.iterations;
     options.tolerance = s_.tolerance;
+    // One global scale, not per-column RMS scaling: the row sums need the bright columns fitted
+    // best, which the unweighted least squares does. Measured (Cornell box 32², 5000 lights,
+    // rate 0.3): rel. L1 0.096 with the global scale, 0.18 with per-column scaling (column RMS
+    // span up to 1e4 per slice); on slices spanning 1e9 (tests/stability, bays) the two agree
+    // (85% vs 83% of the bright bay's energy).
+    options.scale_columns = false;
     NmfResult completed[3];
     tbb::parallel_for(0, 3, [&](int c) {
       completed[c] = CompleteNonnegative(int(m), int(n), entries[c], options,

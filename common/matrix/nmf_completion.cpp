@@ -19,9 +19,24 @@
 // - The two inverses are q×q symmetric positive definite systems (Gram matrix + αI, α > 0),
 //   solved by LDLT; the α, β regularisation keeps them well conditioned even for rank-deficient
 //   factors (q larger than the rank of M, or zero columns).
-// - Scale: the iteration runs on M divided by the root mean square of M_Ω (computed via max|M_Ω|,
-//   so it cannot overflow), in double, so denormal-scale and huge inputs behave like unit-scale
-//   ones; the factors are scaled back by the square root of that scale each.
+// - Scale: the iteration runs on M D⁻¹, every column divided by the root mean square of its
+//   observed entries d_j (computed via the column's max, so it cannot overflow), in double, and
+//   Y is scaled back, Y ← Y D (X, Y ≥ 0 stay nonnegative; XY D = M D⁻¹ D). A column observed only
+//   as zeros (or not at all) gets the RMS of all of M_Ω. Why per column: the columns of a
+//   lighting-matrix slice are lights whose powers can differ by 12 orders of magnitude; on the raw
+//   values the least squares of the ADM only sees the brightest columns, the penalties (a fraction
+//   of the Gram matrices' mean eigenvalue) are far too large for the dim ones, and the iteration
+//   crawls. Measured on a rank-2 60×48 matrix with column scales 1e-6…1e6, 60% observed, 300
+//   iterations: row-sum error 0.16 with one global scale, 2.7e-5 with per-column scales
+//   (6.2e-5 for the same matrix with equal column scales; worst column 0.36 against 6.2e-4).
+//   The rank is invariant (M D⁻¹ has M's rank), and a denormal-scale or huge input behaves like
+//   a unit-scale one. observed_residual and the
+//   convergence test are measured on the scaled matrix (every column's relative fit counts);
+//   the returned observed_residual is recomputed on M itself.
+//   NmfOptions::scale_columns = false keeps the single global scale (the RMS of M_Ω). The
+//   weighting is part of the objective, not only of the iteration: per column, every column's
+//   relative fit counts the same; globally, a column counts by its magnitude, which is what
+//   row sums need. sparse-completion therefore keeps the global scale (see there).
 // - Penalties: a fixed α, β suits neither the matrix's scale nor the balance between X and Y
 //   (XY = (XD)(D⁻¹Y) for any diagonal D > 0), and a penalty much larger than an eigenvalue of
 //   YYᵀ freezes that component of X at U. Measured on lighting-matrix slices (heavy-tailed
@@ -106,6 +121,17 @@ double AdaptivePenalty(double penalty_scale, const Eigen::MatrixXd& gram) {
   return std::max(1e-12, penalty_scale * gram.trace() / double(gram.rows()));
 }
 
+// Root mean square of obs[begin, end)'s values, via their max so that it cannot overflow.
+double RootMeanSquare(const std::vector<Observation>& obs, size_t begin, size_t end) {
+  double max_value = 0;
+  for (size_t e = begin; e < end; ++e) max_value = std::max(max_value, obs[e].value);
+  if (max_value == 0) return 0;
+  double mean_square = 0;
+  for (size_t e = begin; e < end; ++e)
+    mean_square += (obs[e].value / max_value) * (obs[e].value / max_value);
+  return max_value * std::sqrt(mean_square / double(end - begin));
+}
+
 }  // namespace
 
 NmfResult CompleteNonnegative(int rows, int cols, std::span<const MatrixEntry> observed,
@@ -156,18 +182,23 @@ NmfResult CompleteNonnegative(int rows, int cols, std::span<const MatrixEntry> o
     return result;
   }
 
-  // Normalise the observed values to unit root mean square
-  double max_value = 0;
-  for (const Observation& o : obs) max_value = std::max(max_value, o.value);
-  if (max_value == 0) return result;  // nothing but zeros observed: the zero matrix fits exactly
-  double mean_square = 0;  // of value / max, which cannot overflow
-  for (const Observation& o : obs) mean_square += (o.value / max_value) * (o.value / max_value);
-  const double scale = max_value * std::sqrt(mean_square / double(obs.size()));
+  // Normalise the observed values to unit root mean square, per column (see the file comment)
   const size_t nobs = obs.size();
+  const double scale = RootMeanSquare(obs, 0, nobs);
+  if (scale == 0) return result;  // nothing but zeros observed: the zero matrix fits exactly
+  Eigen::VectorXd column_scale = Eigen::VectorXd::Constant(cols, scale);
+  if (options.scale_columns)
+    for (size_t begin = 0; begin < nobs;) {  // obs is sorted by column
+      size_t end = begin;
+      while (end < nobs && obs[end].col == obs[begin].col) ++end;
+      const double d = RootMeanSquare(obs, begin, end);
+      if (d > 0) column_scale(obs[begin].col) = d;
+      begin = end;
+    }
   std::vector<double> value(nobs);
   double norm_m2 = 0, mean_value = 0;
   for (size_t e = 0; e < nobs; ++e) {
-    value[e] = obs[e].value / scale;
+    value[e] = obs[e].value / column_scale(obs[e].col);
     norm_m2 += value[e] * value[e];
     mean_value += value[e];
   }
@@ -261,12 +292,24 @@ NmfResult CompleteNonnegative(int rows, int cols, std::span<const MatrixEntry> o
     previous_residual = residual;
   }
 
-  // Undo the normalisation, half on each factor
+  // Undo the normalisation: the global scale half on each factor (neither overflows), the
+  // columns' own scales relative to it on Y
   const double root = std::sqrt(scale);
   result.X = best_Ut.transpose() * root;
   result.Y = best_V * root;
-  result.observed_residual = best_residual;
+  if (options.scale_columns)
+    for (int j = 0; j < cols; ++j) result.Y.col(j) *= column_scale(j) / scale;
   result.iterations = iterations;
+  // The residual on M itself, relative to the largest value so that its squares cannot overflow
+  double max_value = 0;
+  for (const Observation& o : obs) max_value = std::max(max_value, o.value);
+  double r2 = 0, m2 = 0;
+  for (const Observation& o : obs) {
+    const double fitted = result.X.row(o.row).dot(result.Y.col(o.col));
+    r2 += ((fitted - o.value) / max_value) * ((fitted - o.value) / max_value);
+    m2 += (o.value / max_value) * (o.value / max_value);
+  }
+  result.observed_residual = std::isfinite(r2) ? std::sqrt(r2 / m2) : best_residual;
   return result;
 }
 

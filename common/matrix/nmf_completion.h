@@ -38,6 +38,10 @@ struct NmfOptions {
   double penalty_scale = 0.1;
   // Dual step length, γ ∈ (0, (1+√5)/2) (Xu et al. 2011, Theorem; Huo 2015, Appendix A).
   double gamma = 1.618;
+  // Divide every column by the RMS of its observed entries before the ADM and multiply Y back
+  // after (false: one global scale). Columns of lighting-matrix slices span many orders of
+  // magnitude; see the .cpp.
+  bool scale_columns = true;
 };
 
 struct NmfResult {
@@ -46,7 +50,7 @@ struct NmfResult {
   // huge entries would overflow. X is rows × q', Y is q' × cols, with q' ≤ min(rank, rows, cols)
   // (see min_oversampling), except when every entry was observed (see `complete`).
   Eigen::MatrixXd X, Y;
-  // ‖P_Ω(XY − M)‖_F / ‖P_Ω(M)‖_F (0 when M_Ω = 0).
+  // ‖P_Ω(XY − M)‖_F / ‖P_Ω(M)‖_F (0 when M_Ω = 0), on M's own scale.
   double observed_residual = 0;
   int iterations = 0;
   // Every entry of M was observed: no factorisation was run, and the result reproduces M exactly
