@@ -111,11 +111,14 @@ TEST(AdaptiveCompletion, FullSamplingEqualsBruteForceWithGlossyMaterials) {
 // the near lights summed apart (near_distance).
 TEST(AdaptiveCompletion, FullSamplingEqualsBruteForceInMedia) {
   const std::string scene = testing::SharedScene("volumetric-caustic");
+  // Both kinds of media lights (VRLs by default, medium VPLs), with and without refinement.
+  for (const char* media_lights : {"vrl", "vpl"})
   for (const char* refine : {"segment_refine=0", "segment_refine=1"}) {
-    const std::vector<std::string> common = {"segment_rows_per_slice=100", refine};
+    const std::vector<std::string> common = {"segment_rows_per_slice=100", refine,
+                                             std::string("media_lights=") + media_lights};
     RenderOutput brute = Render(scene, "brute", common, 300, 16);
     ASSERT_GT(brute.stats["receivers"]["segments"].get<int>(), 200);
-    ASSERT_GT(brute.stats["lights"]["medium_vpl"].get<int>(), 0);
+    ASSERT_GT(brute.stats["lights"][media_lights == std::string("vrl") ? "vrl" : "medium_vpl"].get<int>(), 0);
     ASSERT_GT(brute.stats["slices"].get<int>(), 3);
     for (const char* near : {"near_distance=0", "near_distance=0.3"}) {
       std::vector<std::string> params = kExact;
