@@ -12,10 +12,13 @@
 #               1 repeat, 1024 reference pixels (about two hours on 2 cores)
 #   --media     only the issue-4 media table, into docs/media-methods.md: volumetric-caustic and
 #               the cloud scene at 256x256 with 1000 and 4000 lights, adaptive-completion against
-#               brute force, 1 repeat, 1024 reference pixels
+#               brute force, 1 repeat, 1024 reference pixels (LIGHTFARM_MEDIA_RESOLUTION=WxH
+#               overrides the resolution)
 #   (none)      the full report: 256x256 and 512x512, 10^4/10^5/10^6 lights, 3 repeats
 # Env: LIGHTFARM_SHARED (shared data), LIGHTFARM_BUILD (build dir), LIGHTFARM_THREADS (0 = all),
-#      LIGHTFARM_CACHE (reference cache root; default build/bench-cache)
+#      LIGHTFARM_CACHE (reference cache root; default build/bench-cache),
+#      LIGHTFARM_REPORT_ONLY=1 (rebuild the report from the previous run's bench outputs, e.g.
+#      after interrupting one bench with Ctrl-C: a bench keeps the rows it finished)
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 shared=${LIGHTFARM_SHARED:-$(cd "$root/.." && pwd)/shared}
@@ -39,7 +42,9 @@ fi
 if [ $media = 1 ]; then
   out="$root/docs/media-methods.md"; assets="$root/docs/media-methods"; work="$build/media-runs"
 fi
-rm -rf "$work" "$assets.tmp"
+report_only=${LIGHTFARM_REPORT_ONLY:-0}
+[ "$report_only" = 1 ] || rm -rf "$work"
+rm -rf "$assets.tmp"
 mkdir -p "$work" "$assets.tmp"
 
 # The surface table (issue 3) reuses the accuracy benches of cornell-box and veach-mis for its
@@ -50,7 +55,7 @@ elif [ $surface = 1 ]; then
   acc_res=256x256; lights=10000,100000,1000000; repeats=1; ref_pixels=1024; surf_res=384x384
   surf_lights=10000,100000
 elif [ $media = 1 ]; then
-  acc_res=256x256; lights=1000,4000; repeats=1; ref_pixels=1024
+  acc_res=${LIGHTFARM_MEDIA_RESOLUTION:-256x256}; lights=1000,4000; repeats=1; ref_pixels=1024
 elif [ $standard = 1 ]; then
   acc_res=256x256; lights=10000,100000; repeats=1; ref_pixels=1024; surf_res=384x384
 else
@@ -69,6 +74,11 @@ done
 skipped=()
 bench() {  # tag scene-name args... : one bench into $work/tag; false if it failed
   local tag=$1 scene=$2; shift 2
+  if [ "$report_only" = 1 ]; then
+    [ -f "$work/$tag.log" ] && ! [ -f "$work/$tag.seconds" ] &&
+      skipped+=("$tag: $(grep -v '^\s*$' "$work/$tag.log" | tr '\r' '\n' | grep -v '^\s*$' | tail -1)")
+    return 0
+  fi
   local cmd=("$lf" bench "${scene_file[$scene]}" --out-dir "$work/$tag" --threads "$threads" "$@")
   echo "+ ${cmd[*]}" >&2
   local t0=$SECONDS
@@ -99,13 +109,14 @@ done
 commit=$(git -C "$root" rev-parse --short HEAD)$(git -C "$root" diff --quiet HEAD -- . ':!docs' || echo "+uncommitted")
 machine="$(nproc) cores ($(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs)), $(free -g | awk '/Mem:/{print $2}') GiB"
 mode=full; [ $quick = 1 ] && mode=quick; [ $standard = 1 ] && mode=standard; [ $surface = 1 ] && mode=surface; [ $media = 1 ] && mode=media
-python3 - "$work" "$assets.tmp" "$out.tmp" "$commit" "$machine" "$mode" "$(date -u +%Y-%m-%dT%H:%MZ)" \
+LIGHTFARM_ACC_RES=$acc_res python3 - "$work" "$assets.tmp" "$out.tmp" "$commit" "$machine" "$mode" "$(date -u +%Y-%m-%dT%H:%MZ)" \
   "${skipped[@]+"${skipped[@]}"}" <<'PY'
 import csv, math, os, re, shutil, statistics, sys
 from collections import defaultdict
 work, assets, out, commit, machine, mode, date = sys.argv[1:8]
 skipped = sys.argv[8:]
 quick = mode == "quick"
+asset_rel = os.path.basename(assets[:-4] if assets.endswith(".tmp") else assets)  # relative to docs/
 
 def rows(tag):
     with open(os.path.join(work, tag, "results.csv")) as f:
@@ -151,7 +162,7 @@ if mode == "surface":
               "media scenes and the other plots are in [accuracy.md](accuracy.md).")
 if mode == "media":
     md.append("")
-    md.append("**Media mode** (the issue-4 table: volumetric-caustic and the cloud scene at 256² with "
+    md.append(f"**Media mode** (the issue-4 table: volumetric-caustic and the cloud scene at {os.environ['LIGHTFARM_ACC_RES']} with "
               "1000 and 4000 lights, adaptive-completion's ρ/σ sweep against brute force with the same "
               "lights, one repeat, errors on 1024 seeded reference pixels).")
 if mode == "standard":
@@ -177,7 +188,7 @@ md.append("`lightfarm render|submit --target-error E` picks the cheapest setting
           "`rate=0.002/E` (clamped to 0.01..0.5); other methods need a bench.")
 if skipped:
     md.append("")
-    md.append("Skipped (the render failed; the last line of its log):")
+    md.append("Interrupted or failed, so a bench may lack some of its settings (the last line of its log):")
     md.append("")
     for s in skipped:
         md.append(f"- {s}")
@@ -197,10 +208,10 @@ for tag in sorted(t for t in os.listdir(work) if t.startswith("acc-") and os.pat
     text = open(os.path.join(work, tag, "report.md")).read()
     text = re.sub(r"^(#+) lightfarm bench: .*$", f"## {scene}", text, count=1, flags=re.M)
     text = re.sub(r"^## ", "### ", text[text.index("\n"):], flags=re.M)
-    text = re.sub(r"\]\(((?!http)[^)]+)\)", lambda m: f"](accuracy/{scene}/{m.group(1)})", text)
+    text = re.sub(r"\]\(((?!http)[^)]+)\)", lambda m: f"]({asset_rel}/{scene}/{m.group(1)})", text)
     md.append("")
     md.append(f"## {scene}")
-    md.append(f"\n({secs(tag)} s for the whole bench; raw rows: [results.csv](accuracy/{scene}/results.csv))")
+    md.append(f"\n({secs(tag)} s for the whole bench; raw rows: [results.csv]({asset_rel}/{scene}/results.csv))")
     md.append(text)
 
 # --- issue 4: media ---------------------------------------------------------------------------
