@@ -108,6 +108,7 @@ done
 
 commit=$(git -C "$root" rev-parse --short HEAD)$(git -C "$root" diff --quiet HEAD -- . ':!docs' || echo "+uncommitted")
 machine="$(nproc) cores ($(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs)), $(free -g | awk '/Mem:/{print $2}') GiB"
+[ "$report_only" = 1 ] && commit="$commit (report rebuilt from the bench outputs of an earlier run: the benches ran on an earlier build)"
 mode=full; [ $quick = 1 ] && mode=quick; [ $standard = 1 ] && mode=standard; [ $surface = 1 ] && mode=surface; [ $media = 1 ] && mode=media
 LIGHTFARM_ACC_RES=$acc_res python3 - "$work" "$assets.tmp" "$out.tmp" "$commit" "$machine" "$mode" "$(date -u +%Y-%m-%dT%H:%MZ)" \
   "${skipped[@]+"${skipped[@]}"}" <<'PY'
