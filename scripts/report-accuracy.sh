@@ -291,7 +291,7 @@ for tag in surf:
                   f"{m['rpp']:.1f}{' *est.*' if m['est'] else ''} | {m['l2']:.4f} | {m['l1']:.4f} |")
     # Targets at 10^5 lights (or the largest count run).
     counts = sorted({m["lights"] for m in ms})
-    L = 100000 if 100000 in counts else counts[-1]
+    L = min(counts, key=lambda c: abs(math.log(c / 1e5)))  # counts are actual: 100003, not 10^5
     brute = [m for m in ms if m["method"] == "brute" and m["lights"] == L]
     if not brute:
         continue
