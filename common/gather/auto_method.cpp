@@ -1,10 +1,11 @@
 // `--method auto`: the rule table (docs/rendering.md, "auto", shows the same table).
 //
 // Rows are tried in order; the first whose condition holds picks the first of its candidates the
-// registry knows. A scene with media resolves to `brute`: it is the only method that gathers the
-// media rows and columns today (eye segments, medium VPLs; render_job.cpp), and every other one
-// would silently drop in-scattered light. Put `adaptive-completion` first in that row once it
-// gathers them (Huo 2016 is the media method). The accuracy row picks, among the measured surface
+// registry knows. A scene with media resolves to `brute`, exact. `adaptive-completion` gathers
+// media rows and columns too (eye segments, VRLs) and is the faster choice there, but its measured
+// rel_l2 at its defaults (docs/media-methods.md: up to ~0.03 on volumetric-caustic 128², 1000
+// lights) is above the default 2% target, and two scenes at 128² are too few to set a margin:
+// users pick it with --method. The accuracy row picks, among the measured surface
 // methods the registry knows, the one with the fewest shadow rays per pixel whose measured
 // rel_l2 is at most kSafety · target (the measurements are one scene: keep a margin); without
 // --param target_error the target is kDefaultTarget (the 2% goal).

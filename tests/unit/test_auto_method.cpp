@@ -1,6 +1,6 @@
 // `--method auto`: the rule table resolves surface scenes by light count and accuracy target,
-// media scenes to the one method that gathers media rows (brute, for now), rejects a target that is
-// not a number in (0, 1], and a render names the resolved method in its stats.
+// media scenes to brute force (exact; adaptive-completion is picked explicitly), rejects a
+// target that is not a number in (0, 1], and a render names the resolved method in its stats.
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 
@@ -46,7 +46,7 @@ TEST(AutoMethod, SurfaceScenesResolveByLightCountAndTarget) {
     EXPECT_NO_THROW(CreateGatherMethod(Resolve(e, 20000, {target}), OptionMap())) << target;
 }
 
-TEST(AutoMethod, MediaResolveToTheMethodThatGathersMediaRows) {
+TEST(AutoMethod, MediaResolveToBruteForce) {
   Effects e = SurfaceEffects();
   e.media = true;
   EXPECT_EQ(Resolve(e, 20000), "brute");
