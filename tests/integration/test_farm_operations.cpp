@@ -155,5 +155,42 @@ TEST(FarmOperations, TlsCarriesWorkersAndClientsAndRefusesPlaintext) {
   EXPECT_TRUE(coordinator.process().running());
 }
 
+// `submit --target-error` (issue 6): the same choice as `render --target-error` from a bench's
+// cost model, the predicted time printed before, the measured error after (the bench's cached
+// reference), and the farm's image equal to the direct render's bits.
+TEST(FarmOperations, SubmitWithTargetErrorUsesTheBenchAndReportsTheMeasuredError) {
+  TempDir dir;
+  const std::string scene = SourcePath("scenes/cornell-box/scene.pbrt");
+  const std::vector<std::string> job = {"--resolution", "16x16", "--lights", "500", "--seed", "3"};
+  std::vector<std::string> bench = {"bench", scene, "--out-dir", dir.Path("bench"), "--methods", "mrcs",
+                                    "--repeats", "1", "--cache-dir", dir.Path("cache"), "--no-plots",
+                                    "--lights", "500", "--resolution", "16x16", "--seed", "3"};
+  CliResult b = RunCli(dir, bench, 300);
+  ASSERT_EQ(b.exit_code, 0) << b.err;
+  auto with = [&](std::vector<std::string> head) {
+    head.insert(head.end(), job.begin(), job.end());
+    for (const char* a : {"--target-error", "0.05", "--method", "mrcs", "--quiet"}) head.push_back(a);
+    for (const std::string& a : {std::string("--bench-dir"), dir.Path("bench"), std::string("--bench-cache"),
+                                 dir.Path("cache")})
+      head.push_back(a);
+    return head;
+  };
+  CliResult direct = RunCli(dir, with({"render", scene, "--out", dir.Path("direct.exr")}));
+  ASSERT_EQ(direct.exit_code, 0) << direct.err;
+
+  CoordinatorProcess coordinator(dir, dir.Path("state"), {});
+  auto worker = StartWorker(dir, coordinator.address());
+  CliResult farm = RunCli(dir, with({"submit", scene, "--server", coordinator.address(), "--wait",
+                                     "--out", dir.Path("farm.exr")}));
+  ASSERT_EQ(farm.exit_code, 0) << farm.err;
+  for (const CliResult* r : {&direct, &farm}) {
+    EXPECT_NE(r->err.find("target error 0.05: mrcs"), std::string::npos) << r->err;
+    EXPECT_NE(r->err.find("predicted time"), std::string::npos) << r->err;
+    EXPECT_EQ(r->err.find("predicted time unknown"), std::string::npos) << r->err;
+    EXPECT_NE(r->err.find("measured rel_l2"), std::string::npos) << r->err;
+  }
+  EXPECT_TRUE(SameBits(ReadImage(dir.Path("farm.exr")), ReadImage(dir.Path("direct.exr"))));
+}
+
 }  // namespace
 }  // namespace lightfarm
