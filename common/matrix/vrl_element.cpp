@@ -102,6 +102,31 @@ struct PendingSample {
   int16_t medium = -1;
 };
 
+// Casts an element's sample shadow rays as one batch and sums the visible samples, each times
+// the transmittance of its connection (generalized visibility, Huo 2016 Sec. 3), keeping the
+// clamp counters. Shared by both VRL element types.
+RGB SumVisibleSamples(const Scene& scene, RTCRay* rays, const PendingSample* pending, size_t nrays,
+                      Rng& rng, std::vector<RTCRay>* recorded, MatrixCounters* counters) {
+  if (nrays == 0) return RGB(0.f);
+  if (recorded) recorded->insert(recorded->end(), rays, rays + nrays);
+  scene.Occluded(rays, nrays);
+  counters->shadow_rays += nrays;
+  RGBAccum sum;
+  for (size_t r = 0; r < nrays; ++r) {
+    if (!(rays[r].tfar >= 0.f)) continue;  // occluded
+    const PendingSample& ps = pending[r];
+    RGB v = ps.value * scene.TransmittanceAlong(ps.origin, ps.dir, ps.length, ps.medium, rng);
+    ++counters->transmittance_evals;
+    if (ps.unclamped_scale != 1.f) {
+      double lum = double(v.Luminance());
+      counters->clamp_lost += lum * double(ps.unclamped_scale - 1.f);
+      counters->clamp_kept += lum;
+    }
+    sum.Add(v);
+  }
+  return sum.ToRGB();
+}
+
 }  // namespace
 
 RGB LightingMatrix::VrlPointElement(uint32_t ri, uint32_t col, MatrixCounters* counters) const {
@@ -158,24 +183,7 @@ RGB LightingMatrix::VrlPointElement(uint32_t ri, uint32_t col, MatrixCounters* c
     ps.medium = Dot(w, row.ng) > 0 ? row.medium_out : row.medium_in;
     ++nrays;
   }
-  if (nrays == 0) return RGB(0.f);
-  if (recorded_rays_) recorded_rays_->insert(recorded_rays_->end(), rays.begin(), rays.begin() + nrays);
-  scene_.Occluded(rays.data(), nrays);
-  counters->shadow_rays += nrays;
-  RGBAccum sum;
-  for (size_t r = 0; r < nrays; ++r) {
-    if (!(rays[r].tfar >= 0.f)) continue;  // occluded
-    const PendingSample& ps = pending[r];
-    RGB v = ps.value * scene_.TransmittanceAlong(ps.origin, ps.dir, ps.length, ps.medium, rng);
-    ++counters->transmittance_evals;
-    if (ps.unclamped_scale != 1.f) {
-      double lum = double(v.Luminance());
-      counters->clamp_lost += lum * double(ps.unclamped_scale - 1.f);
-      counters->clamp_kept += lum;
-    }
-    sum.Add(v);
-  }
-  return sum.ToRGB();
+  return SumVisibleSamples(scene_, rays.data(), pending.data(), nrays, rng, recorded_rays_, counters);
 }
 
 RGB LightingMatrix::VrlSegmentElement(uint32_t si, uint32_t col, MatrixCounters* counters) const {
@@ -239,24 +247,7 @@ RGB LightingMatrix::VrlSegmentElement(uint32_t si, uint32_t col, MatrixCounters*
     ps.medium = seg.medium;
     ++nrays;
   }
-  if (nrays == 0) return RGB(0.f);
-  if (recorded_rays_) recorded_rays_->insert(recorded_rays_->end(), rays.begin(), rays.begin() + nrays);
-  scene_.Occluded(rays.data(), nrays);
-  counters->shadow_rays += nrays;
-  RGBAccum sum;
-  for (size_t r = 0; r < nrays; ++r) {
-    if (!(rays[r].tfar >= 0.f)) continue;
-    const PendingSample& ps = pending[r];
-    RGB v = ps.value * scene_.TransmittanceAlong(ps.origin, ps.dir, ps.length, ps.medium, rng);
-    ++counters->transmittance_evals;
-    if (ps.unclamped_scale != 1.f) {
-      double lum = double(v.Luminance());
-      counters->clamp_lost += lum * double(ps.unclamped_scale - 1.f);
-      counters->clamp_kept += lum;
-    }
-    sum.Add(v);
-  }
-  return sum.ToRGB();
+  return SumVisibleSamples(scene_, rays.data(), pending.data(), nrays, rng, recorded_rays_, counters);
 }
 
 }  // namespace lightfarm
