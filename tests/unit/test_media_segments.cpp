@@ -9,6 +9,7 @@
 
 #include "common/matrix/lighting_matrix.h"
 #include "common/scene/phase.h"
+#include "tests/common/fog_scene.h"
 #include "tests/common/test_util.h"
 
 namespace lightfarm {
@@ -16,19 +17,7 @@ namespace {
 
 constexpr float kSigmaA = 0.3f, kSigmaS = 0.9f, kG = 0.4f;
 
-std::unique_ptr<Scene> FogScene() {
-  SceneDescription desc = ParseSceneString(
-      "Integrator \"volpath\" \"integer maxdepth\" [5]\n"
-      "LookAt 0 0 50  0 0 0  0 1 0\nCamera \"perspective\"\nWorldBegin\n"
-      "MakeNamedMedium \"fog\" \"string type\" \"homogeneous\" \"rgb sigma_a\" [0.3 0.3 0.3]\n"
-      "  \"rgb sigma_s\" [0.9 0.9 0.9] \"float g\" [0.4]\n"
-      "AttributeBegin\nMediumInterface \"fog\" \"\"\nMaterial \"interface\"\n"
-      "Shape \"sphere\" \"float radius\" [20]\nAttributeEnd\n"
-      "Material \"diffuse\" \"rgb reflectance\" [0.5 0.5 0.5]\n"
-      "AttributeBegin\nTranslate 0 0 -30\nShape \"sphere\" \"float radius\" [1]\nAttributeEnd\n",
-      "fog.pbrt", "/tmp");
-  return Scene::Build(desc, SceneBuildOptions{});
-}
+using testing::FogScene;  // tests/common/fog_scene.h
 
 float SigmaT() { return kSigmaA + kSigmaS; }
 

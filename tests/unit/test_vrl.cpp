@@ -17,6 +17,7 @@
 #include "common/lights/light_tree.h"
 #include "common/matrix/lighting_matrix.h"
 #include "common/scene/phase.h"
+#include "tests/common/fog_scene.h"
 #include "tests/common/test_util.h"
 
 namespace lightfarm {
@@ -25,21 +26,7 @@ namespace {
 constexpr double kPiD = 3.14159265358979323846;
 constexpr double kSigmaA = 0.3, kSigmaS = 0.9, kSigmaT = kSigmaA + kSigmaS, kEyeG = 0.4;
 
-// A homogeneous fog (σ_a 0.3, σ_s 0.9, g 0.4) inside an interface sphere of radius 20 and,
-// outside it, a diffuse sphere (its material is the receivers' ρ = 0.5 Lambertian).
-std::unique_ptr<Scene> FogScene() {
-  SceneDescription desc = ParseSceneString(
-      "Integrator \"volpath\" \"integer maxdepth\" [5]\n"
-      "LookAt 0 0 50  0 0 0  0 1 0\nCamera \"perspective\"\nWorldBegin\n"
-      "MakeNamedMedium \"fog\" \"string type\" \"homogeneous\" \"rgb sigma_a\" [0.3 0.3 0.3]\n"
-      "  \"rgb sigma_s\" [0.9 0.9 0.9] \"float g\" [0.4]\n"
-      "AttributeBegin\nMediumInterface \"fog\" \"\"\nMaterial \"interface\"\n"
-      "Shape \"sphere\" \"float radius\" [20]\nAttributeEnd\n"
-      "Material \"diffuse\" \"rgb reflectance\" [0.5 0.5 0.5]\n"
-      "AttributeBegin\nTranslate 0 0 -30\nShape \"sphere\" \"float radius\" [1]\nAttributeEnd\n",
-      "fog.pbrt", "/tmp");
-  return Scene::Build(desc, SceneBuildOptions{});
-}
+using testing::FogScene;  // tests/common/fog_scene.h
 
 // Composite 8-point Gauss–Legendre on [a, b] with `panels` equal panels.
 double GaussLegendre(const std::function<double(double)>& f, double a, double b, int panels) {
