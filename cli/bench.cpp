@@ -34,7 +34,7 @@ extern "C" void OnInterrupt(int) {
 }
 
 struct BenchArgs {
-  std::string scene, out_dir, methods, lights = "10000", resolution, filter, cache_dir;
+  std::string scene, out_dir, methods, settings, lights = "10000", resolution, filter, cache_dir;
   std::vector<std::string> params;
   int spp = 1, repeats = 3, threads = 0;
   unsigned long long seed = 0;
@@ -67,6 +67,7 @@ void RunBenchCommand(const BenchArgs& a) {
   o.scene = a.scene;
   o.out_dir = a.out_dir;
   o.methods = SplitList(a.methods);
+  o.settings = a.settings;
   o.lights.clear();
   for (const std::string& n : SplitList(a.lights)) {
     try {
@@ -130,6 +131,9 @@ void AddBenchCommand(CLI::App& app) {
   cmd->add_option("scene", a->scene, "pbrt-v4 scene file")->required()->check(CLI::ExistingFile);
   cmd->add_option("--out-dir", a->out_dir, "Where results.csv, plots and report.md go")->required();
   cmd->add_option("--methods", a->methods, "Comma-separated methods (default: all with a sweep)");
+  cmd->add_option("--settings", a->settings,
+                  "With one method in --methods: its settings instead of the built-in sweep, "
+                  "';'-separated, each a ','-separated KEY=VALUE list (cheapest first)");
   cmd->add_option("--lights", a->lights, "Virtual light counts, N[,N2,...]")->capture_default_str();
   cmd->add_option("--resolution", a->resolution, "WxH (default: the scene's Film)");
   cmd->add_option("--spp", a->spp, "Camera samples per pixel")->check(CLI::Range(1, 4096));

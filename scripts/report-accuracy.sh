@@ -12,8 +12,9 @@
 #               1 repeat, 1024 reference pixels (about two hours on 2 cores)
 #   --media     only the issue-4 media table, into docs/media-methods.md: volumetric-caustic and
 #               the cloud scene at 256x256 with 1000 and 4000 lights, adaptive-completion against
-#               brute force, 1 repeat, 1024 reference pixels (LIGHTFARM_MEDIA_RESOLUTION=WxH
-#               overrides the resolution)
+#               brute force, 1 repeat, 1024 reference pixels (LIGHTFARM_MEDIA_RESOLUTION=WxH,
+#               LIGHTFARM_MEDIA_LIGHTS=N,N2 and LIGHTFARM_MEDIA_SETTINGS="rho=..,sigma=..;..."
+#               override the resolution, the light counts and adaptive-completion's sweep)
 #   (none)      the full report: 256x256 and 512x512, 10^4/10^5/10^6 lights, 3 repeats
 # Env: LIGHTFARM_SHARED (shared data), LIGHTFARM_BUILD (build dir), LIGHTFARM_THREADS (0 = all),
 #      LIGHTFARM_CACHE (reference cache root; default build/bench-cache),
@@ -55,7 +56,8 @@ elif [ $surface = 1 ]; then
   acc_res=256x256; lights=10000,100000,1000000; repeats=1; ref_pixels=1024; surf_res=384x384
   surf_lights=10000,100000
 elif [ $media = 1 ]; then
-  acc_res=${LIGHTFARM_MEDIA_RESOLUTION:-256x256}; lights=1000,4000; repeats=1; ref_pixels=1024
+  acc_res=${LIGHTFARM_MEDIA_RESOLUTION:-256x256}; lights=${LIGHTFARM_MEDIA_LIGHTS:-1000,4000}
+  repeats=1; ref_pixels=1024
 elif [ $standard = 1 ]; then
   acc_res=256x256; lights=10000,100000; repeats=1; ref_pixels=1024; surf_res=384x384
 else
@@ -96,6 +98,7 @@ if [ $media = 1 ]; then
   for s in "${scenes[@]}"; do [ "$s" = volumetric-caustic ] || [[ "$s" == *cloud* ]] && media_scenes+=("$s"); done
   scenes=("${media_scenes[@]}")
   media_args=(--methods adaptive-completion)
+  [ -n "${LIGHTFARM_MEDIA_SETTINGS:-}" ] && media_args+=(--settings "$LIGHTFARM_MEDIA_SETTINGS")
 fi
 for s in "${scenes[@]}"; do
   bench "acc-$s" "$s" --resolution "$acc_res" --lights "$lights" --repeats "$repeats" \
@@ -110,7 +113,7 @@ commit=$(git -C "$root" rev-parse --short HEAD)$(git -C "$root" diff --quiet HEA
 machine="$(nproc) cores ($(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs)), $(free -g | awk '/Mem:/{print $2}') GiB"
 [ "$report_only" = 1 ] && commit="$commit (report rebuilt from the bench outputs of an earlier run: the benches ran on an earlier build)"
 mode=full; [ $quick = 1 ] && mode=quick; [ $standard = 1 ] && mode=standard; [ $surface = 1 ] && mode=surface; [ $media = 1 ] && mode=media
-LIGHTFARM_ACC_RES=$acc_res python3 - "$work" "$assets.tmp" "$out.tmp" "$commit" "$machine" "$mode" "$(date -u +%Y-%m-%dT%H:%MZ)" \
+LIGHTFARM_ACC_RES=$acc_res LIGHTFARM_ACC_LIGHTS=$lights python3 - "$work" "$assets.tmp" "$out.tmp" "$commit" "$machine" "$mode" "$(date -u +%Y-%m-%dT%H:%MZ)" \
   "${skipped[@]+"${skipped[@]}"}" <<'PY'
 import csv, math, os, re, shutil, statistics, sys
 from collections import defaultdict
@@ -164,7 +167,7 @@ if mode == "surface":
 if mode == "media":
     md.append("")
     md.append(f"**Media mode** (the issue-4 table: volumetric-caustic and the cloud scene at {os.environ['LIGHTFARM_ACC_RES']} with "
-              "1000 and 4000 lights, adaptive-completion's ρ/σ sweep against brute force with the same "
+              f"{' and '.join(os.environ['LIGHTFARM_ACC_LIGHTS'].split(','))} lights, adaptive-completion's ρ/σ settings against brute force with the same "
               "lights, one repeat, errors on 1024 seeded reference pixels).")
 if mode == "standard":
     md.append("")

@@ -167,7 +167,7 @@ std::vector<BenchRow> ReadBenchCsv(const std::string& path) {
 std::vector<BenchRow> RunBench(const BenchOptions& o, const BenchProgress& progress) {
   if (o.repeats < 1) throw OptionError("--repeats must be >= 1");
   if (o.lights.empty()) throw OptionError("--lights needs at least one count");
-  const std::vector<MethodSweep> sweeps = SweepsFor(o.methods);
+  const std::vector<MethodSweep> sweeps = SweepsFor(o.methods, o.settings);
   fs::create_directories(o.out_dir);
   const std::string csv_path = (fs::path(o.out_dir) / "results.csv").string();
   std::ofstream csv(csv_path, std::ios::trunc);

@@ -18,6 +18,7 @@ struct BenchOptions {
   std::string scene;
   std::string out_dir;
   std::vector<std::string> methods;   // empty: every registered method with a sweep
+  std::string settings;               // non-empty: this sweep ("a=1;a=2") for the one method
   std::vector<size_t> lights = {10000};
   int width = 0, height = 0;          // 0: the scene's Film
   int spp = 1;

@@ -85,4 +85,19 @@ std::vector<MethodSweep> SweepsFor(const std::vector<std::string>& methods) {
   return sweeps;
 }
 
+std::vector<MethodSweep> SweepsFor(const std::vector<std::string>& methods,
+                                   const std::string& settings) {
+  std::vector<MethodSweep> sweeps = SweepsFor(methods);
+  if (settings.empty()) return sweeps;
+  if (methods.size() != 1 || sweeps.size() != 1)
+    throw OptionError("--settings needs exactly one swept method in --methods");
+  MethodSweep custom = ParseSweep(sweeps[0].method, settings);
+  if (custom.settings.empty()) throw OptionError("--settings: no setting in \"" + settings + "\"");
+  for (const SweepSetting& s : custom.settings)
+    for (const std::string& p : s.params)
+      if (p.find('=') == std::string::npos || p.front() == '=')
+        throw OptionError("--settings: \"" + p + "\" is not KEY=VALUE");
+  return {custom};
+}
+
 }  // namespace lightfarm

@@ -20,6 +20,11 @@ struct MethodSweep {
 // The sweeps of `methods` (all registered methods with a sweep entry when empty), in table
 // order. Throws OptionError for a name that is not registered or has no sweep entry.
 std::vector<MethodSweep> SweepsFor(const std::vector<std::string>& methods);
+// The same with `settings` ("a=1,b=2;a=2,b=4", cheapest first) in place of the table's line;
+// it needs exactly one method. Throws OptionError otherwise or for an empty or malformed list
+// (a setting's entries must be KEY=VALUE; the method checks the values when it runs).
+std::vector<MethodSweep> SweepsFor(const std::vector<std::string>& methods,
+                                   const std::string& settings);
 
 // Registered methods that have a sweep entry (brute, the reference, has none).
 std::vector<std::string> SweptMethodNames();

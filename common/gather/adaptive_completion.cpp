@@ -55,6 +55,15 @@
 //     default) at 32²: near VRLs on eye-segment slices only, rel_l1 0.030 with 38% of the
 //     elements; on surface slices too, 0.008 with 44%; at 64², 0.0095 with 23%. Scenes without
 //     media are unchanged.
+//     The price: near columns are most of the evaluated elements (64², 2000 lights: 80%; 128²,
+//     1000 lights: 68%), and their number grows linearly with the lights. Two cheaper splits were
+//     measured and rejected (64², 2000 lights, vs brute force): (i) exact only on the rows a light
+//     is near, the rest of its column zeroed there and left to the tree and the completion:
+//     rel_l1 0.026 with 10.5% of the elements (near_distance 0.2: 0.016 / 14.9%; 0.3: 0.011 /
+//     21.6%) — the zeroed rows are holes no basis of smooth columns represents; (ii) exact on its
+//     near rows, the other rows completed from Ω minus those rows (its own least squares, weight
+//     1, after the traversal): 0.046 with 8.6%, or 0.020 with 19% when a loss fraction above 0.1
+//     forces the full column — the far part of a near light's column is not in span(U) either.
 //
 // Exact limit: with rho=1 (Ω = every row), sigma=0 (a column that loses anything on Ω is sampled
 // fully) and beta=0 (every node refined to ≤ K lights, each evaluated once), every light's column

@@ -113,6 +113,44 @@ TEST(Farm, EveryMethodOnTheEmbeddedFarmMatchesTheDirectRender) {
   }
 }
 
+// A media scene through the whole pipeline on real processes: the cloud (NanoVDB density, VRLs,
+// eye segments partitioned by METIS on the coordinator) gathered by adaptive-completion on two
+// worker processes gives the direct render's bits, and its stats show the media work.
+TEST(Farm, MediaSceneOnWorkerProcessesMatchesTheDirectRenderBitForBit) {
+  const std::string cloud = SourcePath("scenes/cloud/scene.pbrt");
+  const std::vector<std::string> args = {"--method", "adaptive-completion", "--resolution", "24x24",
+                                         "--lights", "400", "--seed", "5"};
+  RenderSettings s;
+  s.method = "adaptive-completion";
+  s.width = s.height = 24;
+  s.lights = 400;
+  s.seed = 5;
+  const RenderOutput direct = RenderScene(cloud, s);
+  ASSERT_GT(direct.stats["lights"]["vrl"].get<double>(), 0);
+  ASSERT_GT(direct.stats["receivers"]["segments"].get<double>(), 0);
+
+  TempDir dir;
+  CoordinatorProcess coordinator(dir, dir.Path("state"), {});
+  auto w1 = StartWorker(dir, coordinator.address());
+  auto w2 = StartWorker(dir, coordinator.address());
+  CliResult submit = RunCli(dir, Concat({"submit", cloud, "--server", coordinator.address(), "--wait", "--quiet",
+                                         "--out", dir.Path("cloud.exr")},
+                                        args));
+  ASSERT_EQ(submit.exit_code, 0) << submit.err;
+  const Image farm = ReadImage(dir.Path("cloud.exr"));
+  EXPECT_TRUE(SameBits(farm, direct.image));
+  EXPECT_GT(farm.MeanLuminance(), 0.0);
+  nlohmann::json stats = nlohmann::json::parse(Slurp(dir.Path("cloud.json")));
+  EXPECT_EQ(stats["method"], "adaptive-completion");
+  EXPECT_EQ(stats["lights"]["vrl"], direct.stats["lights"]["vrl"]);
+  EXPECT_EQ(stats["receivers"]["segments"], direct.stats["receivers"]["segments"]);
+  EXPECT_EQ(stats["tasks"], direct.stats["tasks"]);
+  EXPECT_EQ(stats["matrix"]["elements_evaluated"], direct.stats["matrix"]["elements_evaluated"]);
+  EXPECT_GT(stats["matrix"]["transmittance_evals"].get<double>(), 0);
+  const auto effects = stats["effects"].get<std::vector<std::string>>();
+  EXPECT_NE(std::find(effects.begin(), effects.end(), "media"), effects.end());
+}
+
 TEST(Farm, KilledWorkerIsReplacedWithinOneLeaseTimeout) {
   TempDir dir;
   const double lease = 1.5;

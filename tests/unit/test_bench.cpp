@@ -282,5 +282,22 @@ TEST(BenchSweeps, EveryRegisteredMethodWithASweepLineIsSwept) {
   EXPECT_EQ(mrcs.settings[1].params, (std::vector<std::string>{"rows=50", "columns=100"}));
 }
 
+TEST(BenchSweeps, SettingsReplaceTheTablesLineForOneMethod) {
+  const std::vector<MethodSweep> custom =
+      SweepsFor({"adaptive-completion"}, "rho=0.1,sigma=0.01;rho=0.2,sigma=0.002");
+  ASSERT_EQ(custom.size(), 1u);
+  EXPECT_EQ(custom[0].method, "adaptive-completion");
+  ASSERT_EQ(custom[0].settings.size(), 2u);
+  EXPECT_EQ(custom[0].settings[0].label, "rho=0.1,sigma=0.01");
+  EXPECT_EQ(custom[0].settings[1].params, (std::vector<std::string>{"rho=0.2", "sigma=0.002"}));
+  // Empty settings: the table's sweep
+  EXPECT_EQ(SweepsFor({"mrcs"}, "")[0].settings.size(), SweepsFor({"mrcs"})[0].settings.size());
+  EXPECT_THROW(SweepsFor({}, "rho=0.1"), OptionError);                       // every method
+  EXPECT_THROW(SweepsFor({"mrcs", "lightcuts"}, "rows=10"), OptionError);    // two methods
+  EXPECT_THROW(SweepsFor({"mrcs"}, ";;"), OptionError);                      // no setting
+  EXPECT_THROW(SweepsFor({"mrcs"}, "rows=10,columns"), OptionError);         // not KEY=VALUE
+  EXPECT_THROW(SweepsFor({"mrcs"}, "=10"), OptionError);
+}
+
 }  // namespace
 }  // namespace lightfarm
