@@ -275,7 +275,9 @@ std::vector<uint32_t> PartitionSegments(const std::vector<SegmentFeatures>& feat
 
 size_t RefineSegmentSlices(const Scene& scene, ReceiverSet* receivers,
                            std::vector<SegmentFeatures>* features, std::vector<uint32_t>* part,
-                           float scene_diagonal, const SegmentSlicingOptions& options) {
+                           float scene_diagonal, const SegmentSlicingOptions& options,
+                           size_t* merged_out) {
+  size_t merged = 0;
   std::vector<SegmentFeatures>& f = *features;
   std::vector<uint32_t>& p = *part;
   const size_t n = f.size();
@@ -348,14 +350,37 @@ size_t RefineSegmentSlices(const Scene& scene, ReceiverSet* receivers,
   f.clear();
   p.clear();
   size_t split_count = 0;
+  std::vector<uint8_t> created;  // per new segment: a half made by a split
+  // Sec. 4.2.3's last step: a new piece joins the connecting piece of its ray (the one before
+  // it, same sample, same medium) when both are in the same part and their Eq. 8 similarity is
+  // above merge_threshold. The joined segment starts where the earlier one does, with its
+  // throughput (the later one's is that times the earlier one's transmittance), so the ray's
+  // in-scattering is unchanged; its τ is the product.
+  auto append = [&](const EyeSegment& seg, const SegmentFeatures& feat, uint32_t part_of, bool is_new) {
+    if (!segs.empty() && (is_new || created.back()) && options.merge_threshold > 0) {
+      EyeSegment& last = segs.back();
+      if (last.sample == seg.sample && last.medium == seg.medium && last.depth == seg.depth &&
+          p.back() == part_of &&
+          SegmentSimilarity(f.back(), feat, sp).Sum() > options.merge_threshold) {
+        last.length += seg.length;
+        f.back().x1 = feat.x1;
+        f.back().tau *= feat.tau;
+        created.back() = 0;  // a whole segment again
+        ++merged;
+        return;
+      }
+    }
+    segs.push_back(seg);
+    f.push_back(feat);
+    p.push_back(part_of);
+    created.push_back(is_new ? 1 : 0);
+  };
   for (size_t s = 0; s < n; ++s) {
     const Split& sp_s = splits[s];
     if (!sp_s.split) {
-      segs.push_back(old_segments[s]);
-      f.push_back(old_features[s]);
       // Not split: the segment keeps its part (even when both halves prefer another one: moving
       // whole segments would unbalance the partition METIS chose)
-      p.push_back(old_part[s]);
+      append(old_segments[s], old_features[s], old_part[s], false);
       continue;
     }
     ++split_count;
@@ -364,12 +389,8 @@ size_t RefineSegmentSlices(const Scene& scene, ReceiverSet* receivers,
     a.length = b.length = 0.5f * seg.length;
     b.o = seg.o + seg.d * a.length;
     b.throughput = seg.throughput * sp_s.first_half_transmittance;  // unbiased estimate
-    segs.push_back(a);
-    segs.push_back(b);
-    f.push_back(HalfFeatures(old_features[s], 0, sp_s.tau[0]));
-    f.push_back(HalfFeatures(old_features[s], 1, sp_s.tau[1]));
-    p.push_back(sp_s.part[0]);
-    p.push_back(sp_s.part[1]);
+    append(a, HalfFeatures(old_features[s], 0, sp_s.tau[0]), sp_s.part[0], true);
+    append(b, HalfFeatures(old_features[s], 1, sp_s.tau[1]), sp_s.part[1], true);
   }
   // Each sample's segments stay contiguous and in order: recompute their ranges.
   for (CameraSample& cs : receivers->samples) {
@@ -381,6 +402,7 @@ size_t RefineSegmentSlices(const Scene& scene, ReceiverSet* receivers,
     if (cs.segment_count == 0) cs.first_segment = int32_t(s);
     ++cs.segment_count;
   }
+  if (merged_out) *merged_out = merged;
   return split_count;
 }
 

@@ -2,8 +2,8 @@
 // of a graph whose edges link each segment to its nearest spatial neighbours, weighted by the
 // segment similarity of Eq. 8 (Eqs. 10–12 and the pixel term); a K-way partition of that graph
 // (METIS, minimising the weight of the cut edges) gives the slices of the segment rows; segments
-// that cross a slice boundary are then split (Sec. 4.2.3, with a simpler boundary classifier than
-// the paper's SVM: see RefineSegmentSlices).
+// that cross a slice boundary are then split and similar pieces merged again (Sec. 4.2.3, with a
+// simpler boundary classifier than the paper's SVM: see RefineSegmentSlices).
 #pragma once
 
 #include <cstdint>
@@ -30,6 +30,8 @@ struct SegmentSlicingOptions {
   float pixel_sigma = 4.f;         // σ of the pixel term (pixels)
   bool refine = true;              // split boundary segments (RefineSegmentSlices); the plan's
                                    // default is off (param segment_refine)
+  float merge_threshold = 2.5f;    // Sec. 4.2.3: rejoin a new piece and its neighbour above this
+                                   // Eq. 8 similarity (of 4); 0: never
   uint64_t seed = 0;
 };
 
@@ -89,12 +91,15 @@ std::vector<uint32_t> PartitionSegments(const std::vector<SegmentFeatures>& feat
 // segment's neighbours in each part) to different parts; each half joins its best part. The
 // halves replace the segment in `receivers` (same camera sample, contiguous, the second half's
 // throughput includes the first half's transmittance), so CameraSample::first_segment/
-// segment_count stay valid and the total length per sample is unchanged. The paper's merge step
-// (rejoining similar pieces, threshold 2.5) is not done. Returns the number of split segments;
-// `part` and `features` are updated to the new segment order.
+// segment_count stay valid and the total length per sample is unchanged. Then the paper's merge
+// step: a new half and the piece before it on its ray (same medium and part) are joined again
+// when their Eq. 8 similarity exceeds options.merge_threshold (2.5), e.g. a half that stays in
+// its segment's part next to an unsplit neighbour there. Returns the number of split segments
+// (and, in *merged, the number of joins); `part` and `features` follow the new segment order.
 size_t RefineSegmentSlices(const Scene& scene, ReceiverSet* receivers,
                            std::vector<SegmentFeatures>* features, std::vector<uint32_t>* part,
-                           float scene_diagonal, const SegmentSlicingOptions& options);
+                           float scene_diagonal, const SegmentSlicingOptions& options,
+                           size_t* merged = nullptr);
 
 // The whole of Sec. 4 for eye segments: features, partition, optional refinement (which changes
 // receivers->segments), slices with their nearest neighbouring slices (by midpoint and direction).

@@ -198,17 +198,28 @@ TEST(SegmentSlicing, ConsecutiveSegmentsOfARayMostlyShareASlice) {
   EXPECT_GT(double(same), 0.7 * double(pairs));
 }
 
-TEST(SegmentSlicing, RefinementKeepsEachSamplesLengthAndContiguity) {
+// Split and merge (threshold 2.5, and 0: split only) keep every ray's length, order and pieces
+// contiguous; the segment count changes by splits − merges.
+class SegmentRefinement : public ::testing::TestWithParam<float> {};
+
+TEST_P(SegmentRefinement, KeepsEachSamplesLengthAndContiguity) {
   const std::unique_ptr<Scene> scene = FogScene(24);
   const ReceiverSet before = FogReceivers(*scene);
   ReceiverSet after = before;
   const float diagonal = Length(scene->bounds().Diagonal());
-  const SegmentSlicingOptions o = SmallSlices();
+  SegmentSlicingOptions o = SmallSlices();
+  o.merge_threshold = GetParam();
   std::vector<SegmentFeatures> features = ComputeSegmentFeatures(*scene, after, 7);
   std::vector<uint32_t> part = PartitionSegments(features, 6, diagonal, o);
-  const size_t splits = RefineSegmentSlices(*scene, &after, &features, &part, diagonal, o);
+  size_t merged = 0;
+  const size_t splits = RefineSegmentSlices(*scene, &after, &features, &part, diagonal, o, &merged);
   EXPECT_GT(splits, 0u);
-  ASSERT_EQ(after.segments.size(), before.segments.size() + splits);
+  if (o.merge_threshold > 0) {
+    EXPECT_GT(merged, 0u);
+  } else {
+    EXPECT_EQ(merged, 0u);
+  }
+  ASSERT_EQ(after.segments.size(), before.segments.size() + splits - merged);
   ASSERT_EQ(part.size(), after.segments.size());
   ASSERT_EQ(features.size(), after.segments.size());
   for (uint32_t p : part) EXPECT_LT(p, 6u);
@@ -230,8 +241,32 @@ TEST(SegmentSlicing, RefinementKeepsEachSamplesLengthAndContiguity) {
     for (uint32_t k = 0; k < b.segment_count; ++k)
       len_b += double(before.segments[size_t(b.first_segment) + k].length);
     EXPECT_NEAR(len_a, len_b, 1e-4 * (1 + len_b)) << "sample " << i;
-    EXPECT_GE(a.segment_count, b.segment_count);
+    if (o.merge_threshold == 0) {
+      EXPECT_GE(a.segment_count, b.segment_count);
+    }
   }
+  // Merged features span their pieces: each starts where its segment starts and ends where it ends
+  for (size_t k = 0; k < after.segments.size(); ++k) {
+    const EyeSegment& seg = after.segments[k];
+    EXPECT_LT(Distance(features[k].x0, seg.o), 1e-3f);
+    EXPECT_LT(Distance(features[k].x1, seg.o + seg.d * seg.length), 1e-3f);
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(MergeThreshold, SegmentRefinement, ::testing::Values(2.5f, 0.f));
+
+// Nothing is as similar as 4 (the sum of four terms in [0, 1] for distinct pieces): no merges.
+TEST(SegmentSlicing, MergeThresholdAboveTheLargestSimilarityNeverMerges) {
+  const std::unique_ptr<Scene> scene = FogScene(24);
+  ReceiverSet receivers = FogReceivers(*scene);
+  const float diagonal = Length(scene->bounds().Diagonal());
+  SegmentSlicingOptions o = SmallSlices();
+  o.merge_threshold = 4.f;
+  std::vector<SegmentFeatures> features = ComputeSegmentFeatures(*scene, receivers, 7);
+  std::vector<uint32_t> part = PartitionSegments(features, 6, diagonal, o);
+  size_t merged = 1;
+  RefineSegmentSlices(*scene, &receivers, &features, &part, diagonal, o, &merged);
+  EXPECT_EQ(merged, 0u);
 }
 
 // In a homogeneous medium a split segment's second half carries the first half's transmittance
