@@ -11,8 +11,9 @@
 #               veach-mis at 256x256 with 10^4/10^5/10^6 lights and 384x384 with 10^4/10^5,
 #               1 repeat, 1024 reference pixels (about two hours on 2 cores)
 #   --media     only the issue-4 media table, into docs/media-methods.md: volumetric-caustic and
-#               the cloud scene at 256x256 with 1000 and 4000 lights, adaptive-completion against
-#               brute force, 1 repeat, 1024 reference pixels (LIGHTFARM_MEDIA_RESOLUTION=WxH,
+#               the cloud scene at 256x256 with 1000, 4000 and 16000 lights, adaptive-completion
+#               (rho=0.1,sigma=0.01 and rho=0.2,sigma=0.002) against brute force, 1 repeat, 1024
+#               reference pixels (about 45 minutes on 2 cores; LIGHTFARM_MEDIA_RESOLUTION=WxH,
 #               LIGHTFARM_MEDIA_LIGHTS=N,N2 and LIGHTFARM_MEDIA_SETTINGS="rho=..,sigma=..;..."
 #               override the resolution, the light counts and adaptive-completion's sweep)
 #   (none)      the full report: 256x256 and 512x512, 10^4/10^5/10^6 lights, 3 repeats
@@ -57,7 +58,7 @@ elif [ $surface = 1 ]; then
   acc_res=256x256; lights=10000,100000,1000000; repeats=1; ref_pixels=1024; surf_res=384x384
   surf_lights=10000,100000
 elif [ $media = 1 ]; then
-  acc_res=${LIGHTFARM_MEDIA_RESOLUTION:-256x256}; lights=${LIGHTFARM_MEDIA_LIGHTS:-1000,4000}
+  acc_res=${LIGHTFARM_MEDIA_RESOLUTION:-256x256}; lights=${LIGHTFARM_MEDIA_LIGHTS:-1000,4000,16000}
   repeats=1; ref_pixels=1024
 elif [ $standard = 1 ]; then
   acc_res=256x256; lights=10000,100000; repeats=1; ref_pixels=1024; surf_res=384x384
@@ -99,7 +100,7 @@ if [ $media = 1 ]; then
   for s in "${scenes[@]}"; do [ "$s" = volumetric-caustic ] || [[ "$s" == *cloud* ]] && media_scenes+=("$s"); done
   scenes=("${media_scenes[@]}")
   media_args=(--methods adaptive-completion)
-  [ -n "${LIGHTFARM_MEDIA_SETTINGS:-}" ] && media_args+=(--settings "$LIGHTFARM_MEDIA_SETTINGS")
+  media_args+=(--settings "${LIGHTFARM_MEDIA_SETTINGS:-rho=0.1,sigma=0.01;rho=0.2,sigma=0.002}")
 fi
 for s in "${scenes[@]}"; do
   bench "acc-$s" "$s" --resolution "$acc_res" --lights "$lights" --repeats "$repeats" \
