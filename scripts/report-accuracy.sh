@@ -12,8 +12,9 @@
 #               1 repeat, 1024 reference pixels (about two hours on 2 cores)
 #   --media     only the issue-4 media table, into docs/media-methods.md: volumetric-caustic and
 #               the cloud scene at 256x256 with 1000, 4000 and 16000 lights, adaptive-completion
-#               (rho=0.1,sigma=0.01 and rho=0.2,sigma=0.002) against brute force, 1 repeat, 1024
-#               reference pixels (about 45 minutes on 2 cores; LIGHTFARM_MEDIA_RESOLUTION=WxH,
+#               (rho=0.1,sigma=0.01 with near_distance 0.05 and 0.1, rho=0.2,sigma=0.002) against
+#               brute force, 1 repeat, 1024 reference pixels (about an hour on 2 cores, references
+#               cached; LIGHTFARM_MEDIA_RESOLUTION=WxH,
 #               LIGHTFARM_MEDIA_LIGHTS=N,N2 and LIGHTFARM_MEDIA_SETTINGS="rho=..,sigma=..;..."
 #               override the resolution, the light counts and adaptive-completion's sweep)
 #   (none)      the full report: 256x256 and 512x512, 10^4/10^5/10^6 lights, 3 repeats
@@ -100,7 +101,7 @@ if [ $media = 1 ]; then
   for s in "${scenes[@]}"; do [ "$s" = volumetric-caustic ] || [[ "$s" == *cloud* ]] && media_scenes+=("$s"); done
   scenes=("${media_scenes[@]}")
   media_args=(--methods adaptive-completion)
-  media_args+=(--settings "${LIGHTFARM_MEDIA_SETTINGS:-rho=0.1,sigma=0.01;rho=0.2,sigma=0.002}")
+  media_args+=(--settings "${LIGHTFARM_MEDIA_SETTINGS:-rho=0.1,sigma=0.01,near_distance=0.05;rho=0.1,sigma=0.01;rho=0.2,sigma=0.002}")
 fi
 for s in "${scenes[@]}"; do
   bench "acc-$s" "$s" --resolution "$acc_res" --lights "$lights" --repeats "$repeats" \
