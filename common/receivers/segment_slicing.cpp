@@ -359,8 +359,11 @@ size_t RefineSegmentSlices(const Scene& scene, ReceiverSet* receivers,
   auto append = [&](const EyeSegment& seg, const SegmentFeatures& feat, uint32_t part_of, bool is_new) {
     if (!segs.empty() && (is_new || created.back()) && options.merge_threshold > 0) {
       EyeSegment& last = segs.back();
+      // Contiguous pieces only: a ray leaves a medium and re-enters it (an interface sphere of
+      // vacuum inside fog) with the same medium and depth on both sides of the gap.
+      const Vec3 end = last.o + last.d * last.length;
       if (last.sample == seg.sample && last.medium == seg.medium && last.depth == seg.depth &&
-          p.back() == part_of &&
+          Distance(end, seg.o) <= 1e-4f * (1.f + Length(end)) && p.back() == part_of &&
           SegmentSimilarity(f.back(), feat, sp).Sum() > options.merge_threshold) {
         last.length += seg.length;
         f.back().x1 = feat.x1;
