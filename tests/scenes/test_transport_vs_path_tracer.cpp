@@ -7,7 +7,7 @@
 // (direct light on the walls and single scattering in the fog) and 3 (two more bounces through
 // walls and fog). A wrong σ_s, phase normalisation, VRL power or one bounce too many or too few
 // moves a region by far more than the tolerance (maxdepth 1 → 3 changes them by 70–190%).
-// Measured (seeds 3 and 4, luminance-free R channel): maxdepth 1 within 0.9% of the path tracer
+// Measured on the red channel (seeds 3 and 4): maxdepth 1 within 0.9% of the path tracer
 // (4096 spp) in every region, maxdepth 3 within 2.7%, VRLs and medium VPLs alike.
 #include <gtest/gtest.h>
 
