@@ -63,7 +63,7 @@ int Main(int argc, char** argv) {
                 m[0] / n, m[1] / n, m[2] / n, std::sqrt(v[0]) / n, std::sqrt(v[1]) / n,
                 std::sqrt(v[2]) / n);
   };
-  std::printf("maxdepth %d, %d spp, %dx%d\n", (opt.max_depth >= 0 ? opt.max_depth : scene->hints().max_depth), opt.spp, w, h);
+  std::printf("maxdepth %d, %d spp, %dx%d\n", traced.max_depth, opt.spp, w, h);
   report("all", 0, 0, w, h);
   for (const std::string& r : regions) {
     size_t colon = r.find(':');

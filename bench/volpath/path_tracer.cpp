@@ -198,7 +198,7 @@ RGB VolumetricPathTracer::ShadowTransmittance(Vec3 o, Vec3 p, int medium) const 
 PathTracedImage RenderPathTraced(const Scene& scene, const PathTracerOptions& opt) {
   VolumetricPathTracer pt(scene, opt);
   const int w = scene.hints().width, h = scene.hints().height;
-  PathTracedImage out{Image(w, h), Image(w, h)};
+  PathTracedImage out{Image(w, h), Image(w, h), pt.max_depth()};
   Image& img = out.mean;
   Image& var = out.variance_of_mean;
   tbb::parallel_for(0, h, [&](int y) {

@@ -72,6 +72,7 @@ class VolumetricPathTracer {
 // jittered pixel samples integrate) and the variance of each pixel's mean.
 struct PathTracedImage {
   Image mean, variance_of_mean;
+  int max_depth = 0;  // the depth the tracer used (the option's, else the scene's)
 };
 PathTracedImage RenderPathTraced(const Scene& scene, const PathTracerOptions& opt);
 
