@@ -17,7 +17,7 @@ namespace {
 int Main(int argc, char** argv) {
   CLI::App app{"Independent volumetric path tracer for validating lightfarm transport"};
   std::string scene_path, out_path, resolution;
-  PathTracerOptions opt;
+  VolpathCheckOptions opt;
   app.add_option("scene", scene_path, "pbrt-v4 scene")->required();
   app.add_option("--out", out_path, "Output EXR")->required();
   app.add_option("--resolution", resolution, "WxH (default: the scene's Film)");

@@ -14,7 +14,8 @@ void AddRenderOptions(CLI::App* cmd, RenderOptionArgs& a) {
   cmd->add_option("--resolution", a.resolution, "WxH (default: the scene's Film)");
   cmd->add_option("--filter", a.filter, "Override the scene's pixel filter")
       ->check(CLI::IsMember({"box", "triangle", "gaussian", "mitchell", "sinc"}));
-  cmd->add_option("--spp", a.spp, "Camera samples per pixel")->check(CLI::Range(1, 4096));
+  cmd->add_option("--spp", a.spp, "Camera samples per pixel (default: path the scene's Sampler pixelsamples, other methods 1)")
+      ->check(CLI::Range(1, 4096));
   cmd->add_option("--lights", a.lights, "Number of virtual lights")->check(CLI::Range(1LL, 100000000LL));
   // Without the check CLI11 wraps a negative number into a huge unsigned seed.
   cmd->add_option("--seed", a.seed, "Random seed")->check(CLI::NonNegativeNumber);

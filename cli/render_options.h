@@ -13,7 +13,7 @@ struct RenderOptionArgs {
   std::string method = "auto";
   std::string resolution;
   std::string filter;
-  int spp = 1;
+  int spp = 0;  // 0: the method's default (path: the scene's pixelsamples, others: 1)
   long long lights = 10000;
   unsigned long long seed = 0;
   std::vector<std::string> params;

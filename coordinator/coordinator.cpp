@@ -321,16 +321,12 @@ bool Coordinator::Preview(const std::string& job_id, uint64_t have_tiles, JobPre
     for (const Task& t : job.tasks)
       if (t.state == TaskStateCode::kDone) done.emplace_back(t.spec, t.result_sha);
   }
-  // Assemble outside the lock: the tiles' row sums into a film, unfinished rows black.
-  std::vector<RGBAccum> rows(plan->matrix->rows());
-  for (const auto& [spec_bytes, sha] : done) {
-    const SubMatrixTask spec = DeserializeTask(spec_bytes);
-    const TaskOutput result = DeserializeTaskOutput(blobs_->Get(sha));
-    for (size_t i = 0; i < spec.rows.size() && i < result.row_sums.size(); ++i)
-      if (spec.rows[i] < rows.size()) rows[spec.rows[i]] = result.row_sums[i];
-  }
+  // Assemble outside the lock: the finished tiles (in task order) into a film, the rest black.
+  GatherOutcome partial = StartOutcome(*plan);
+  for (const auto& [spec_bytes, sha] : done)
+    AddFinalOutput(*plan, DeserializeTask(spec_bytes), DeserializeTaskOutput(blobs_->Get(sha)), &partial);
   uint64_t nan_samples = 0;
-  Image image = AssembleImage(*plan, rows, &nan_samples);
+  Image image = AssembleImage(*plan, partial, &nan_samples);
   const double shrink = std::min(1.0, double(JobPreview::kMaxSide) / std::max(image.width, image.height));
   auto preview = std::make_shared<JobPreview>();
   preview->width = std::max(1, int(image.width * shrink + 0.5));
@@ -482,7 +478,8 @@ bool Coordinator::Complete(const std::string& worker_id, const std::string& leas
                            const Bytes& bytes) {
   LeaseRef ref;
   if (!ParseLease(lease_id, &ref)) throw FarmError(Code::kInvalidArgument, "malformed lease id");
-  size_t expected_rows = 0;
+  std::shared_ptr<Plan> plan;
+  Bytes spec;
   bool final_stage = false;
   {
     std::lock_guard lock(mu_);
@@ -493,16 +490,18 @@ bool Coordinator::Complete(const std::string& worker_id, const std::string& leas
       ++m_duplicates_;
       return false;  // a duplicate or stale completion: harmless
     }
-    expected_rows = task->rows;
+    spec = task->spec;
+    plan = job->plan;
     final_stage = job->stage + 1 == job->stage_count;
   }
   // Validate outside the lock; a malformed result is the task's failure, not the coordinator's.
   std::string problem;
   try {
     TaskOutput out = DeserializeTaskOutput(bytes);
-    if (final_stage && out.row_sums.size() != expected_rows)
-      problem = "result has " + std::to_string(out.row_sums.size()) + " rows, the task has " +
-                std::to_string(expected_rows);
+    if (final_stage) {
+      if (!plan) throw std::logic_error("a running job without a plan");
+      problem = CheckFinalOutput(*plan, DeserializeTask(spec), out);
+    }
   } catch (const SerializeError& e) {
     problem = std::string("malformed result: ") + e.what();
   }
@@ -650,6 +649,10 @@ void Coordinator::PlanJob(int64_t id) {
       throw std::runtime_error("the scene's resolution " + std::to_string(plan->receivers.width) + "x" +
                                std::to_string(plan->receivers.height) + " exceeds the limit of " +
                                std::to_string(options_.max_resolution) + " per axis");
+    if (plan->receivers.spp > options_.max_spp)
+      throw std::runtime_error("the method's default of " + std::to_string(plan->receivers.spp) +
+                               " samples per pixel exceeds the limit of " + std::to_string(options_.max_spp) +
+                               " (set spp)");
     lights_sha = blobs_->Put(SerializeLightSet(plan->lights));
     receivers_sha = blobs_->Put(SerializeReceiverSet(plan->receivers));
     // The stage to (re)start: its input artifact is the previous stage's.
@@ -789,9 +792,7 @@ void Coordinator::FinishJob(int64_t id, std::shared_ptr<Plan> plan, int final_st
   const auto t_film = Clock::now();
   // Sum every stage's outputs in (stage, task) order, exactly as RunStagesLocally does, so the
   // image and the counters are those of the embedded path.
-  GatherOutcome outcome;
-  outcome.row_sums.resize(plan->matrix->rows());
-  std::vector<uint8_t> covered(plan->matrix->rows(), 0);
+  GatherOutcome outcome = StartOutcome(*plan);
   uint64_t attempts = 0, tasks_recorded = 0;
   for (const TaskRecord& r : store_->LoadAllTasks(id)) {
     attempts += uint64_t(r.attempts);
@@ -802,15 +803,10 @@ void Coordinator::FinishJob(int64_t id, std::shared_ptr<Plan> plan, int final_st
     for (const auto& [k, v] : out.stats) outcome.method_stats[k] += v;
     ++outcome.tasks;
     if (r.stage != final_stage) continue;
-    SubMatrixTask spec = DeserializeTask(specs.at(size_t(r.task_id)));
-    if (out.row_sums.size() != spec.rows.size()) throw std::runtime_error("task returned a wrong number of rows");
-    for (size_t i = 0; i < spec.rows.size(); ++i) {
-      if (spec.rows[i] >= covered.size() || covered[spec.rows[i]]++) throw std::runtime_error("row gathered twice");
-      outcome.row_sums[spec.rows[i]] = out.row_sums[i];
-    }
+    AddFinalOutput(*plan, DeserializeTask(specs.at(size_t(r.task_id))), out, &outcome);
   }
   uint64_t nan_samples = 0;
-  Image image = AssembleImage(*plan, outcome.row_sums, &nan_samples);
+  Image image = AssembleImage(*plan, outcome, &nan_samples);
   const std::string exr = options_.state_dir + "/jobs/" + std::to_string(id) + "/result.exr";
   WriteEXR(exr, image);
   std::ifstream f(exr, std::ios::binary);

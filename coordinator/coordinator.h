@@ -28,7 +28,7 @@
 namespace lightfarm {
 
 // Workers and coordinator must speak the same worker protocol and task encodings.
-inline constexpr uint32_t kWorkerProtocolVersion = 1;
+inline constexpr uint32_t kWorkerProtocolVersion = 2;  // 2: film methods (path)
 
 struct CoordinatorOptions {
   std::string state_dir;

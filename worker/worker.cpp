@@ -310,8 +310,12 @@ bool Worker::RunOneTask() {
   try {
     rt = Runtime(lease.job());
     task = DeserializeTask(ByteView(reinterpret_cast<const uint8_t*>(lease.task().data()), lease.task().size()));
+    // Matrix methods' rows index the lighting matrix, film methods' the pixels.
+    const size_t row_limit = rt->method->renders_film()
+                                 ? size_t(rt->receivers.width) * size_t(rt->receivers.height)
+                                 : rt->matrix->rows();
     for (uint32_t r : task.rows)
-      if (r >= rt->matrix->rows()) throw std::runtime_error("task row " + std::to_string(r) + " out of range");
+      if (r >= row_limit) throw std::runtime_error("task row " + std::to_string(r) + " out of range");
     if (!lease.artifact_sha256().empty()) artifact = ReadBytes(FetchBlob(lease.artifact_sha256()));
   } catch (const RpcError& e) {
     if (Transient(e.code())) throw;

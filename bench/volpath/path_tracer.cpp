@@ -12,7 +12,7 @@
 
 namespace lightfarm {
 
-VolumetricPathTracer::VolumetricPathTracer(const Scene& scene, const PathTracerOptions& opt)
+VolumetricPathTracer::VolumetricPathTracer(const Scene& scene, const VolpathCheckOptions& opt)
     : scene_(scene), opt_(opt),
       max_depth_(opt.max_depth >= 0 ? opt.max_depth : scene.hints().max_depth) {
   for (const Medium& m : scene.media())
@@ -195,7 +195,7 @@ RGB VolumetricPathTracer::ShadowTransmittance(Vec3 o, Vec3 p, int medium) const 
   return RGB(0.f);
 }
 
-PathTracedImage RenderPathTraced(const Scene& scene, const PathTracerOptions& opt) {
+PathTracedImage RenderPathTraced(const Scene& scene, const VolpathCheckOptions& opt) {
   VolumetricPathTracer pt(scene, opt);
   const int w = scene.hints().width, h = scene.hints().height;
   PathTracedImage out{Image(w, h), Image(w, h), pt.max_depth()};

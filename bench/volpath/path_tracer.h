@@ -32,7 +32,7 @@
 
 namespace lightfarm {
 
-struct PathTracerOptions {
+struct VolpathCheckOptions {
   int max_depth = -1;  // -1: the scene's
   int spp = 256;
   uint64_t seed = 1;
@@ -52,7 +52,7 @@ class VolumetricPathTracer {
  public:
   // Throws std::runtime_error for what it does not handle: heterogeneous media, emitters other
   // than area lights.
-  VolumetricPathTracer(const Scene& scene, const PathTracerOptions& opt);
+  VolumetricPathTracer(const Scene& scene, const VolpathCheckOptions& opt);
   // Radiance along a camera ray (one sample of the path-space estimator).
   RGB Li(Ray ray, Rng& rng) const;
   int max_depth() const { return max_depth_; }
@@ -63,7 +63,7 @@ class VolumetricPathTracer {
   RGB ShadowTransmittance(Vec3 o, Vec3 p, int medium) const;
 
   const Scene& scene_;
-  PathTracerOptions opt_;
+  VolpathCheckOptions opt_;
   int max_depth_;
   std::vector<double> emitter_cdf_;
 };
@@ -74,6 +74,6 @@ struct PathTracedImage {
   Image mean, variance_of_mean;
   int max_depth = 0;  // the depth the tracer used (the option's, else the scene's)
 };
-PathTracedImage RenderPathTraced(const Scene& scene, const PathTracerOptions& opt);
+PathTracedImage RenderPathTraced(const Scene& scene, const VolpathCheckOptions& opt);
 
 }  // namespace lightfarm

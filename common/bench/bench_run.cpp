@@ -68,7 +68,7 @@ RunResult RunOnce(const std::string& scene, const RenderSettings& settings, uint
   GatherOutcome outcome = RunStagesLocally(plan, nullptr, &times);
   r.gather_s = Since(t1);
   uint64_t nan_samples = 0;
-  r.image = AssembleImage(plan, outcome.row_sums, &nan_samples);
+  r.image = AssembleImage(plan, outcome, &nan_samples);
   r.total_s = Since(t0);
   r.stats = MakeStats(plan, settings, outcome, nan_samples, times, r.total_s);
   return r;

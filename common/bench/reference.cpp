@@ -134,7 +134,7 @@ BenchReference ComputeReference(const ReferenceRequest& r) {
   MatrixCounters counters;
   if (r.pixels == 0 || r.pixels >= size_t(w) * size_t(h)) {
     GatherOutcome outcome = RunStagesLocally(plan, nullptr, &times);
-    ref.image = AssembleImage(plan, outcome.row_sums, nullptr);
+    ref.image = AssembleImage(plan, outcome, nullptr);
     ref.brute_seconds = std::chrono::duration<double>(Clock::now() - t0).count();
     ref.brute_shadow_rays = double(outcome.counters.shadow_rays);
     ref.brute_elements = double(outcome.counters.elements);

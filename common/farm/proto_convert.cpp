@@ -21,7 +21,7 @@ RenderSettings FromProto(const v1::RenderSettings& p) {
   s.width = p.width();
   s.height = p.height();
   s.filter = p.filter();
-  s.spp = p.spp() == 0 ? 1 : p.spp();
+  s.spp = p.spp();  // 0: the method's default
   s.lights = p.lights() == 0 ? 10000 : size_t(p.lights());
   s.seed = p.seed();
   s.params.assign(p.params().begin(), p.params().end());

@@ -36,13 +36,26 @@ class PhaseTimer {
   Clock::time_point start_;
 };
 
-std::unique_ptr<Filter> MakeFilter(const RenderHints& h) {
-  FilterShape shape;
-  shape.sigma = h.filter_sigma;
-  shape.b = h.filter_B;
-  shape.c = h.filter_C;
-  shape.tau = h.filter_tau;
-  return Filter::Create(ParseFilterType(h.filter_type), {h.filter_xradius, h.filter_yradius}, shape);
+// Film methods' tasks: tiles of tile × tile pixels (row-major), each split into passes of
+// pass_spp camera samples, pass-major so that a partial result covers the whole image.
+std::vector<SubMatrixTask> FilmTasks(int width, int height, int spp, int tile, int pass_spp,
+                                     uint64_t seed) {
+  std::vector<SubMatrixTask> tasks;
+  for (int begin = 0; begin < spp; begin += pass_spp) {
+    for (int ty = 0; ty < height; ty += tile) {
+      for (int tx = 0; tx < width; tx += tile) {
+        SubMatrixTask task;
+        task.task_id = uint32_t(tasks.size());
+        task.seed = seed;
+        task.sample_begin = uint32_t(begin);
+        task.sample_end = uint32_t(std::min(spp, begin + pass_spp));
+        for (int y = ty; y < std::min(height, ty + tile); ++y)
+          for (int x = tx; x < std::min(width, tx + tile); ++x) task.rows.push_back(uint32_t(y * width + x));
+        tasks.push_back(std::move(task));
+      }
+    }
+  }
+  return tasks;
 }
 
 }  // namespace
@@ -105,13 +118,21 @@ Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, Ph
   // `auto` resolves once the scene's effects are known (below); until then only its own
   // parameter can be checked, and a typo in the others is reported after the scene is built.
   const bool auto_method = settings.method == kAutoMethod;
+  // Film methods' tiling (FilmTasks): read only for them, so a matrix method rejects the keys.
+  int film_tile = 0, film_pass_spp = 0;
+  auto read_film_params = [&] {
+    if (!plan.method->renders_film()) return;
+    film_tile = int(params.GetInt("tile", 32, 1, 4096));
+    film_pass_spp = int(params.GetInt("pass_spp", 64, 1, 1 << 20));
+  };
   if (auto_method) {
     CheckGatherMethodOptions(settings.method, params);
   } else {
     plan.method = CreateGatherMethod(settings.method, params);
+    read_film_params();
     params.RejectUnused();
   }
-  if (settings.spp < 1) throw OptionError("--spp must be >= 1");
+  if (settings.spp < 0) throw OptionError("--spp must be >= 1 (or 0 for the method's default)");
   if (settings.lights < 1) throw OptionError("--lights must be >= 1");
 
   SceneDescription desc = ParseSceneFile(scene_path);
@@ -128,7 +149,22 @@ Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, Ph
     spdlog::info("method auto resolved to {} (rule: {})", choice.method, choice.rule);
     plan.method = CreateGatherMethod(choice.method, params);
     plan.method_rule = choice.rule;
+    read_film_params();
     params.RejectUnused();
+  }
+  if (plan.method->renders_film()) {
+    // A film method traces its own camera paths: no receivers, virtual lights or slices. The
+    // receiver set only carries the film's size and samples per pixel (the scene's Sampler
+    // "pixelsamples" unless --spp overrides it).
+    timer.End("build");
+    plan.receivers.width = scene.hints().width;
+    plan.receivers.height = scene.hints().height;
+    plan.receivers.spp = settings.spp > 0 ? settings.spp : std::max(1, scene.hints().pixel_samples);
+    plan.matrix = std::make_unique<LightingMatrix>(scene, plan.receivers, plan.lights, plan.matrix_options);
+    plan.tasks = FilmTasks(plan.receivers.width, plan.receivers.height, plan.receivers.spp, film_tile,
+                           film_pass_spp, settings.seed);
+    timer.End("plan");
+    return plan;
   }
   // Eye segments and medium VPLs exist only when a medium is reachable, and only for gather
   // methods that evaluate those rows and columns (GatherMethod::gathers_media). Others still see
@@ -140,10 +176,10 @@ Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, Ph
                  plan.method->name());
   timer.End("build");
 
-  std::unique_ptr<Filter> filter = MakeFilter(scene.hints());
+  std::unique_ptr<Filter> filter = MakePixelFilter(scene.hints());
   FilterSampler filter_sampler(*filter);
   ReceiverOptions ropt;
-  ropt.spp = settings.spp;
+  ropt.spp = std::max(1, settings.spp);
   ropt.seed = settings.seed;
   ropt.max_depth = scene.hints().max_depth;
   ropt.segments_per_ray = media_rows ? segments_per_ray : -1;
@@ -199,11 +235,8 @@ Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, Ph
 GatherOutcome RunStagesLocally(const Plan& plan, const ProgressFn& progress, PhaseTimes* times) {
   PhaseTimer timer(times);
   const GatherMethod& method = *plan.method;
-  const LightingMatrix& matrix = *plan.matrix;
   const GatherContext ctx = plan.context();
-  GatherOutcome outcome;
-  outcome.row_sums.resize(matrix.rows());
-  std::vector<uint8_t> covered(matrix.rows(), 0);
+  GatherOutcome outcome = StartOutcome(plan);
   StageArtifact artifact;
   const int stages = method.stage_count();
   for (int stage = 0; stage < stages; ++stage) {
@@ -219,15 +252,7 @@ GatherOutcome RunStagesLocally(const Plan& plan, const ProgressFn& progress, Pha
     if (stage + 1 < stages) {
       artifact = method.Combine(stage, ctx, outputs);
     } else {
-      for (size_t t = 0; t < tasks.size(); ++t) {
-        const SubMatrixTask& task = tasks[t];
-        if (outputs[t].row_sums.size() != task.rows.size())
-          throw std::logic_error(method.name() + ": task returned a wrong number of rows");
-        for (size_t i = 0; i < task.rows.size(); ++i) {
-          if (covered[task.rows[i]]++) throw std::logic_error(method.name() + ": row gathered twice");
-          outcome.row_sums[task.rows[i]] = outputs[t].row_sums[i];
-        }
-      }
+      for (size_t t = 0; t < tasks.size(); ++t) AddFinalOutput(plan, tasks[t], outputs[t], &outcome);
     }
     timer.End(method.stage_name(stage));
   }
@@ -252,10 +277,68 @@ RGB SampleRadiance(const Plan& plan, const CameraSample& cs, const std::vector<R
   return L.ToRGB();
 }
 
-Image AssembleImage(const Plan& plan, const std::vector<RGBAccum>& row_sums, uint64_t* nan_samples) {
+size_t FinalRows(const Plan& plan) {
+  return plan.method->renders_film() ? size_t(plan.receivers.width) * size_t(plan.receivers.height)
+                                     : plan.matrix->rows();
+}
+
+GatherOutcome StartOutcome(const Plan& plan) {
+  GatherOutcome outcome;
+  const size_t rows = FinalRows(plan);
+  outcome.row_sums.resize(rows);
+  if (plan.method->renders_film())
+    outcome.row_weights.resize(rows);
+  else
+    outcome.row_covered.resize(rows);
+  return outcome;
+}
+
+std::string CheckFinalOutput(const Plan& plan, const SubMatrixTask& task, const TaskOutput& out) {
+  const size_t rows = FinalRows(plan);
+  if (out.row_sums.size() != task.rows.size())
+    return "result has " + std::to_string(out.row_sums.size()) + " rows, the task has " +
+           std::to_string(task.rows.size());
+  const size_t weights = plan.method->renders_film() ? task.rows.size() : 0;
+  if (out.row_weights.size() != weights)
+    return "result has " + std::to_string(out.row_weights.size()) + " row weights, expected " +
+           std::to_string(weights);
+  for (uint32_t r : task.rows)
+    if (r >= rows) return "task row " + std::to_string(r) + " is out of range";
+  return "";
+}
+
+void AddFinalOutput(const Plan& plan, const SubMatrixTask& task, const TaskOutput& out,
+                    GatherOutcome* outcome) {
+  const std::string problem = CheckFinalOutput(plan, task, out);
+  if (!problem.empty()) throw std::runtime_error(plan.method->name() + ": " + problem);
+  if (plan.method->renders_film()) {
+    // Pixel sums of one sample range: added, so the order of calls (task ids) fixes the bits.
+    for (size_t i = 0; i < task.rows.size(); ++i) {
+      outcome->row_sums[task.rows[i]].Add(out.row_sums[i]);
+      outcome->row_weights[task.rows[i]] += out.row_weights[i];
+    }
+    return;
+  }
+  for (size_t i = 0; i < task.rows.size(); ++i) {
+    if (outcome->row_covered[task.rows[i]]++)
+      throw std::runtime_error(plan.method->name() + ": row " + std::to_string(task.rows[i]) + " gathered twice");
+    outcome->row_sums[task.rows[i]] = out.row_sums[i];
+  }
+}
+
+Image AssembleImage(const Plan& plan, const GatherOutcome& outcome, uint64_t* nan_samples) {
   Film film(plan.receivers.width, plan.receivers.height);
+  if (plan.method->renders_film()) {
+    for (size_t p = 0; p < outcome.row_sums.size(); ++p) {
+      const RGBAccum& s = outcome.row_sums[p];
+      film.AddPixelSums(int(p), FilmPixel{s.r, s.g, s.b, outcome.row_weights[p]});
+    }
+    const auto nonfinite = outcome.method_stats.find(plan.method->name() + ".nonfinite_samples");
+    if (nan_samples) *nan_samples = nonfinite == outcome.method_stats.end() ? 0 : uint64_t(nonfinite->second);
+    return film.Resolve();
+  }
   for (const CameraSample& cs : plan.receivers.samples)
-    film.AddSample(int(cs.pixel), SampleRadiance(plan, cs, row_sums), cs.weight);
+    film.AddSample(int(cs.pixel), SampleRadiance(plan, cs, outcome.row_sums), cs.weight);
   if (nan_samples) *nan_samples = film.nan_samples();
   return film.Resolve();
 }
@@ -302,12 +385,16 @@ nlohmann::json MakeStats(const Plan& plan, const RenderSettings& settings,
                  {"transmittance_evals", counters.transmittance_evals},
                  {"fraction_evaluated", full > 0 ? double(counters.elements) / full : 0.0}};
   const double pixels = double(plan.receivers.width) * plan.receivers.height;
+  const auto film_camera_rays = outcome.method_stats.find(plan.method->name() + ".camera_rays");
   s["rays"] = {{"shadow", counters.shadow_rays},
-               {"camera", plan.receivers.stats.camera_rays},
+               {"camera", plan.method->renders_film() && film_camera_rays != outcome.method_stats.end()
+                              ? uint64_t(film_camera_rays->second)
+                              : uint64_t(plan.receivers.stats.camera_rays)},
                {"shadow_per_pixel", double(counters.shadow_rays) / pixels}};
   // Share of the (unclamped) light reaching receivers that the clamp removed.
   double total_lum = 0;
-  for (const RGBAccum& r : outcome.row_sums) total_lum += 0.2126 * r.r + 0.7152 * r.g + 0.0722 * r.b;
+  if (!plan.method->renders_film())
+    for (const RGBAccum& r : outcome.row_sums) total_lum += 0.2126 * r.r + 0.7152 * r.g + 0.0722 * r.b;
   const double denom = total_lum + counters.clamp_lost;
   s["clamp"] = {{"relative", plan.clamp},
                 {"distance", plan.matrix->clamp_distance()},
@@ -331,7 +418,7 @@ RenderOutput RenderScene(const std::string& scene_path, const RenderSettings& se
   PhaseTimer timer(&times);
   RenderOutput out;
   uint64_t nan_samples = 0;
-  out.image = AssembleImage(plan, outcome.row_sums, &nan_samples);
+  out.image = AssembleImage(plan, outcome, &nan_samples);
   timer.End("film");
   out.stats = MakeStats(plan, settings, outcome, nan_samples, times, Seconds(t_start, Clock::now()));
   out.stats["scene"] = scene_path;

@@ -24,7 +24,7 @@ struct RenderSettings {
   std::string method = "brute";  // the library default; the CLI defaults to "auto" (auto_method.h)
   int width = 0, height = 0;  // 0: the scene's Film resolution
   std::string filter;  // overrides the scene's PixelFilter when set
-  int spp = 1;
+  int spp = 0;  // camera samples per pixel; 0: the method's default (path: the scene's, others: 1)
   size_t lights = 10000;
   uint64_t seed = 0;
   std::vector<std::string> params;  // KEY=VALUE (--param)
@@ -65,7 +65,9 @@ Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, Ph
 
 // The result of running all of a method's stages.
 struct GatherOutcome {
-  std::vector<RGBAccum> row_sums;  // one per matrix row
+  std::vector<RGBAccum> row_sums;  // one per matrix row; film methods: Σ w·L per pixel
+  std::vector<double> row_weights;  // film methods: Σ w per pixel
+  std::vector<uint8_t> row_covered;  // matrix methods: rows added so far (each exactly once)
   MatrixCounters counters;
   std::map<std::string, double> method_stats;
   size_t tasks = 0;
@@ -84,8 +86,22 @@ void SampleRows(const Plan& plan, const CameraSample& cs, std::vector<uint32_t>*
 // every caller adds the same floats in the same order and gets the same bits).
 RGB SampleRadiance(const Plan& plan, const CameraSample& cs, const std::vector<RGBAccum>& row_sums);
 
-// Film from row sums: each camera sample adds its SampleRadiance.
-Image AssembleImage(const Plan& plan, const std::vector<RGBAccum>& row_sums, uint64_t* nan_samples);
+// The final stage's rows: the matrix rows, or the pixels for a film method.
+size_t FinalRows(const Plan& plan);
+// An outcome with no final output added yet.
+GatherOutcome StartOutcome(const Plan& plan);
+// Whether a final-stage output fits its task (row count, row weights for film methods, rows in
+// range): "" when it does, else what is wrong. The coordinator checks each worker's result so.
+std::string CheckFinalOutput(const Plan& plan, const SubMatrixTask& task, const TaskOutput& out);
+// Adds a final-stage output: matrix methods set each row exactly once, film methods add their
+// pixel sums. Called in task-id order by every driver (embedded, coordinator, preview), so they
+// all produce the same bits. Throws std::runtime_error when the output does not fit.
+void AddFinalOutput(const Plan& plan, const SubMatrixTask& task, const TaskOutput& out,
+                    GatherOutcome* outcome);
+
+// The image: matrix methods add each camera sample's SampleRadiance to the film, film methods
+// resolve their pixel sums.
+Image AssembleImage(const Plan& plan, const GatherOutcome& outcome, uint64_t* nan_samples);
 
 // The stats JSON (keys are a contract: DESIGN.md).
 nlohmann::json MakeStats(const Plan& plan, const RenderSettings& settings,

@@ -319,6 +319,8 @@ Bytes SerializeTask(const SubMatrixTask& task) {
   w.U64(task.seed);
   PutIndices(w, task.rows);
   PutIndices(w, task.neighbors);
+  w.U32(task.sample_begin);
+  w.U32(task.sample_end);
   return w.Take();
 }
 
@@ -331,6 +333,9 @@ SubMatrixTask DeserializeTask(ByteView bytes) {
   task.seed = r.U64();
   task.rows = GetIndices(r);
   task.neighbors = GetIndices(r);
+  task.sample_begin = r.U32();
+  task.sample_end = r.U32();
+  if (task.sample_end < task.sample_begin) throw SerializeError("task: sample range ends before it begins");
   r.ExpectEnd();
   return task;
 }
@@ -342,6 +347,8 @@ Bytes SerializeTaskOutput(const TaskOutput& out) {
   WriteHeader(w, Kind::kTaskOutput);
   w.U64(out.row_sums.size());
   for (const RGBAccum& s : out.row_sums) { w.F64(s.r); w.F64(s.g); w.F64(s.b); }
+  w.U64(out.row_weights.size());
+  for (double v : out.row_weights) w.F64(v);
   w.Blob(out.payload);
   PutCounters(w, out.counters);
   w.U64(out.stats.size());
@@ -355,6 +362,11 @@ TaskOutput DeserializeTaskOutput(ByteView bytes) {
   TaskOutput out;
   out.row_sums.resize(r.Count(24));
   for (RGBAccum& s : out.row_sums) { s.r = r.F64(); s.g = r.F64(); s.b = r.F64(); }
+  out.row_weights.resize(r.Count(8));
+  for (double& v : out.row_weights) v = r.F64();
+  if (!out.row_weights.empty() && out.row_weights.size() != out.row_sums.size())
+    throw SerializeError("task output: " + std::to_string(out.row_weights.size()) + " row weights for " +
+                         std::to_string(out.row_sums.size()) + " rows");
   out.payload = r.Blob();
   out.counters = GetCounters(r);
   size_t n = r.Count(16);

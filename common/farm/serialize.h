@@ -29,8 +29,9 @@ using Bytes = std::vector<uint8_t>;
 using ByteView = std::span<const uint8_t>;
 
 // Bumped whenever an encoding below changes; a decoder refuses other versions.
-// 2: media on shading points, medium VPLs; 3: VRLs (light length, VRL count)
-inline constexpr uint16_t kSerializeVersion = 3;
+// 2: media on shading points, medium VPLs; 3: VRLs (light length, VRL count); 4: film methods
+// (task sample range, row weights)
+inline constexpr uint16_t kSerializeVersion = 4;
 
 Bytes SerializeLightSet(const LightSet& lights);
 LightSet DeserializeLightSet(ByteView bytes);

@@ -27,11 +27,17 @@ struct SubMatrixTask {
   std::vector<uint32_t> rows;       // receiver (shading point) indices
   std::vector<uint32_t> neighbors;  // ids of neighbouring tasks (slices), when a method needs them
   uint64_t seed = 0;  // job seed; methods derive randomness from (seed, stage, task, index)
+  // Film methods (GatherMethod::renders_film): `rows` are pixel indices (y * width + x) and the
+  // task takes camera samples [sample_begin, sample_end) of each.
+  uint32_t sample_begin = 0, sample_end = 0;
 };
 
 // What a task returns: row sums in the final stage, a method-defined payload in earlier ones.
 struct TaskOutput {
   std::vector<RGBAccum> row_sums;  // final stage: one per task row, same order
+  // Film methods: Σ w per pixel row (row_sums then hold Σ w·L), w the filter weight of each
+  // camera sample; empty for matrix methods.
+  std::vector<double> row_weights;
   std::vector<uint8_t> payload;    // earlier stages: input to Combine
   MatrixCounters counters;
   std::map<std::string, double> stats;  // method-specific numbers, summed over tasks
@@ -56,6 +62,10 @@ class GatherMethod {
   // only sample matrix entries do; a method that bounds elements analytically (lightcuts) needs
   // bounds for every element type first, and until then sees media as attenuation only.
   virtual bool gathers_media() const { return true; }
+  // Whether the method renders the film directly (a path tracer) instead of gathering a lighting
+  // matrix: its plan has no receivers or virtual lights, its tasks are pixel tiles × sample
+  // ranges (SubMatrixTask), and a pixel may appear in several tasks, summed in task order.
+  virtual bool renders_film() const { return false; }
   virtual std::string stage_name(int stage) const { return stage == 0 ? "gather" : "stage" + std::to_string(stage); }
 
   // The tasks of a stage. `tiles` are the plan's row partitions (slices), covering every row once;

@@ -13,5 +13,6 @@ std::unique_ptr<GatherMethod> CreateLightcutsGather(const OptionMap& params);
 std::unique_ptr<GatherMethod> CreateSparseCompletionGather(const OptionMap& params);
 std::unique_ptr<GatherMethod> CreateAdaptiveCompletionGather(const OptionMap& params);
 std::unique_ptr<GatherMethod> CreateLightSliceGather(const OptionMap& params);
+std::unique_ptr<GatherMethod> CreatePathGather(const OptionMap& params);
 
 }  // namespace lightfarm

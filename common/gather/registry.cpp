@@ -17,6 +17,7 @@ const std::vector<std::pair<std::string, Factory>>& Registry() {
       {"sparse-completion", CreateSparseCompletionGather},
       {"adaptive-completion", CreateAdaptiveCompletionGather},
       {"lightslice", CreateLightSliceGather},
+      {"path", CreatePathGather},
   };
   return registry;
 }

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "common/lights/emitters.h"
 #include "common/scene/phase.h"
 #include "common/util/rng.h"
 #include "common/util/sampling.h"
@@ -13,32 +14,6 @@
 namespace lightfarm {
 
 namespace {
-
-// One emitter as a source of particle paths.
-struct EmitterRef {
-  enum Kind { kArea, kPoint, kDistant, kInfinite } kind;
-  uint32_t index;
-  RGB power;  // emitted power Φ
-};
-
-std::vector<EmitterRef> CollectEmitters(const Scene& scene, float scene_radius) {
-  std::vector<EmitterRef> out;
-  for (uint32_t i = 0; i < scene.area_emitters().size(); ++i)
-    out.push_back({EmitterRef::kArea, i, scene.area_emitters()[i].Power()});
-  for (uint32_t i = 0; i < scene.point_emitters().size(); ++i) {
-    const PointEmitter& e = scene.point_emitters()[i];
-    float solid_angle = e.spot ? 2 * kPi * (1 - 0.5f * (e.cos_falloff_start + e.cos_falloff_end))
-                               : 4 * kPi;
-    out.push_back({EmitterRef::kPoint, i, e.intensity * solid_angle});
-  }
-  float disk = kPi * scene_radius * scene_radius;
-  for (uint32_t i = 0; i < scene.distant_emitters().size(); ++i)
-    out.push_back({EmitterRef::kDistant, i, scene.distant_emitters()[i].L * disk});
-  for (uint32_t i = 0; i < scene.infinite_emitters().size(); ++i)
-    out.push_back({EmitterRef::kInfinite, i,
-                   scene.infinite_emitters()[i].AverageRadiance() * (4 * kPi * disk)});
-  return out;
-}
 
 // A ray leaving an emitter, with the flux it carries (already divided by its pdf).
 struct EmittedRay {

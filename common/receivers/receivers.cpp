@@ -136,6 +136,15 @@ PathEnd TraceCameraPath(const Scene& scene, Ray ray, int max_depth, int segments
 
 }  // namespace
 
+std::unique_ptr<Filter> MakePixelFilter(const RenderHints& h) {
+  FilterShape shape;
+  shape.sigma = h.filter_sigma;
+  shape.b = h.filter_B;
+  shape.c = h.filter_C;
+  shape.tau = h.filter_tau;
+  return Filter::Create(ParseFilterType(h.filter_type), {h.filter_xradius, h.filter_yradius}, shape);
+}
+
 ReceiverSet GenerateReceivers(const Scene& scene, const FilterSampler& filter,
                               const ReceiverOptions& opt) {
   ReceiverSet set;

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 #include "common/image/filter.h"
@@ -66,6 +67,9 @@ struct ReceiverOptions {
   // (Huo 2016: h = 16). -1: no segments (the camera ray is only attenuated).
   int segments_per_ray = -1;
 };
+
+// The scene's pixel filter (PixelFilter directive, or the override the scene was built with).
+std::unique_ptr<Filter> MakePixelFilter(const RenderHints& hints);
 
 // Deterministic: every pixel draws from its own hashed generator and scrambled Sobol points.
 ReceiverSet GenerateReceivers(const Scene& scene, const FilterSampler& filter,

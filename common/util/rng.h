@@ -36,6 +36,7 @@ enum class RngStream : uint64_t {
   kCompletion = 7,
   kMedium = 8,
   kSlicing = 9,
+  kPathSample = 10,  // the path tracer: one generator per (pixel, sample index)
 };
 
 // PCG32 (O'Neill 2014): small state, good statistics, cheap to seed per pixel / per path.

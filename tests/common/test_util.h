@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <random>
@@ -69,6 +70,21 @@ inline void ExpectImagesNear(const Image& ref, const Image& img, float rel) {
     for (int c = 0; c < 3; ++c)
       ASSERT_NEAR(img.pixels[i][c], ref.pixels[i][c], rel * std::abs(ref.pixels[i][c]) + 1e-7f)
           << "pixel " << i << " channel " << c;
+}
+
+// Bitwise equality of two images (NaN-safe).
+inline ::testing::AssertionResult SameBits(const Image& a, const Image& b) {
+  if (!a.SameSize(b))
+    return ::testing::AssertionFailure() << "sizes differ: " << a.width << "x" << a.height << " vs " << b.width
+                                         << "x" << b.height;
+  if (a.pixels.empty()) return ::testing::AssertionFailure() << "empty image";
+  if (std::memcmp(a.pixels.data(), b.pixels.data(), a.pixels.size() * sizeof(RGB)) != 0) {
+    for (size_t i = 0; i < a.pixels.size(); ++i)
+      if (std::memcmp(&a.pixels[i], &b.pixels[i], sizeof(RGB)) != 0)
+        return ::testing::AssertionFailure() << "pixel " << i << " differs: " << a.pixels[i].r << " vs "
+                                             << b.pixels[i].r;
+  }
+  return ::testing::AssertionSuccess();
 }
 
 }  // namespace lightfarm::testing

@@ -243,19 +243,5 @@ class StateDb {
   sqlite3* db_ = nullptr;
 };
 
-// Bitwise equality of two images (NaN-safe).
-inline ::testing::AssertionResult SameBits(const Image& a, const Image& b) {
-  if (!a.SameSize(b))
-    return ::testing::AssertionFailure() << "sizes differ: " << a.width << "x" << a.height << " vs " << b.width
-                                         << "x" << b.height;
-  if (a.pixels.empty()) return ::testing::AssertionFailure() << "empty image";
-  if (std::memcmp(a.pixels.data(), b.pixels.data(), a.pixels.size() * sizeof(RGB)) != 0) {
-    for (size_t i = 0; i < a.pixels.size(); ++i)
-      if (std::memcmp(&a.pixels[i], &b.pixels[i], sizeof(RGB)) != 0)
-        return ::testing::AssertionFailure() << "pixel " << i << " differs: " << a.pixels[i].r << " vs "
-                                             << b.pixels[i].r;
-  }
-  return ::testing::AssertionSuccess();
-}
 
 }  // namespace lightfarm::testing

@@ -151,6 +151,39 @@ TEST(Farm, MediaSceneOnWorkerProcessesMatchesTheDirectRenderBitForBit) {
   EXPECT_NE(std::find(effects.begin(), effects.end(), "media"), effects.end());
 }
 
+// The path tracer on worker processes: tiles × sample passes, the passes of a pixel summed in
+// task order, give the direct render's bits (the cloud: NanoVDB density, delta and ratio tracking).
+TEST(Farm, PathTracedMediaSceneOnWorkerProcessesMatchesTheDirectRenderBitForBit) {
+  const std::string cloud = SourcePath("scenes/cloud/scene.pbrt");
+  const std::vector<std::string> args = {"--method", "path", "--resolution", "24x24", "--spp", "12", "--seed", "5",
+                                         "--param", "tile=8", "--param", "pass_spp=5"};
+  RenderSettings s;
+  s.method = "path";
+  s.width = s.height = 24;
+  s.spp = 12;
+  s.seed = 5;
+  s.params = {"tile=8", "pass_spp=5"};
+  const RenderOutput direct = RenderScene(cloud, s);
+  EXPECT_EQ(direct.stats["tasks"], 9 * 3);
+
+  TempDir dir;
+  CoordinatorProcess coordinator(dir, dir.Path("state"), {});
+  auto w1 = StartWorker(dir, coordinator.address());
+  auto w2 = StartWorker(dir, coordinator.address());
+  CliResult submit = RunCli(dir, Concat({"submit", cloud, "--server", coordinator.address(), "--wait", "--quiet",
+                                         "--out", dir.Path("cloud.exr")},
+                                        args));
+  ASSERT_EQ(submit.exit_code, 0) << submit.err;
+  const Image farm = ReadImage(dir.Path("cloud.exr"));
+  EXPECT_TRUE(SameBits(farm, direct.image));
+  EXPECT_GT(farm.MeanLuminance(), 0.0);
+  nlohmann::json stats = nlohmann::json::parse(Slurp(dir.Path("cloud.json")));
+  EXPECT_EQ(stats["method"], "path");
+  EXPECT_EQ(stats["spp"], 12);
+  EXPECT_EQ(stats["rays"]["shadow"], direct.stats["rays"]["shadow"]);
+  EXPECT_EQ(stats["rays"]["camera"], 24 * 24 * 12);
+}
+
 TEST(Farm, KilledWorkerIsReplacedWithinOneLeaseTimeout) {
   TempDir dir;
   const double lease = 1.5;

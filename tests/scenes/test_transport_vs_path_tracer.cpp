@@ -86,7 +86,7 @@ void ExpectMatchesPathTracer(int max_depth, const std::string& media_lights, dou
   SceneBuildOptions build;
   build.filter = "box";
   std::unique_ptr<Scene> scene = Scene::Build(ParseSceneFile(path), build);
-  PathTracerOptions pt;
+  VolpathCheckOptions pt;
   pt.spp = 4096;
   pt.seed = 3;
   const PathTracedImage traced = RenderPathTraced(*scene, pt);
@@ -127,6 +127,54 @@ TEST(TransportVsPathTracer, MultipleScatteringWithVirtualRayLightsMatches) {
 
 TEST(TransportVsPathTracer, MultipleScatteringWithMediumVplsMatches) {
   ExpectMatchesPathTracer(3, "vpl", 0.05);
+}
+
+// The `path` method (MIS, delta and ratio tracking, chromatic σ_a) against the independent
+// tracer (next-event estimation only, closed-form transmittance): same regions, and every
+// channel of the whole image, within both estimates' noise (4 standard errors each) plus 1%.
+void ExpectPathMethodMatchesPathTracer(int max_depth) {
+  TempDir dir;
+  const std::string path = dir.Write("fog-box.pbrt", FogBox(max_depth));
+  SceneBuildOptions build;
+  build.filter = "box";
+  std::unique_ptr<Scene> scene = Scene::Build(ParseSceneFile(path), build);
+  VolpathCheckOptions pt;
+  pt.spp = 4096;
+  pt.seed = 3;
+  const PathTracedImage traced = RenderPathTraced(*scene, pt);
+
+  RenderSettings s;
+  s.method = "path";
+  s.filter = "box";
+  s.spp = 4096;
+  s.seed = 4;
+  const RenderOutput lf = RenderScene(path, s);
+  const int regions[5][4] = {{0, 0, 16, 16}, {0, 0, 16, 8}, {0, 8, 16, 8}, {0, 0, 8, 16}, {8, 0, 8, 16}};
+  for (const auto& r : regions) {
+    const RegionMean a = Mean(traced.mean, &traced.variance_of_mean, r[0], r[1], r[2], r[3]);
+    const RegionMean b = Mean(lf.image, nullptr, r[0], r[1], r[2], r[3]);
+    ASSERT_GT(a.value, 0);
+    EXPECT_NEAR(b.value, a.value, 0.01 * a.value + 8 * a.standard_error)
+        << "maxdepth " << max_depth << ", region " << r[0] << "," << r[1] << " " << r[2] << "x" << r[3]
+        << ": independent tracer " << a.value << " ± " << a.standard_error << ", path " << b.value;
+  }
+  for (int c = 0; c < 3; ++c) {
+    double a = 0, b = 0;
+    for (int y = 0; y < 16; ++y)
+      for (int x = 0; x < 16; ++x) {
+        a += double(traced.mean.at(x, y)[c]);
+        b += double(lf.image.at(x, y)[c]);
+      }
+    EXPECT_NEAR(b, a, 0.02 * a) << "maxdepth " << max_depth << ", channel " << c;
+  }
+}
+
+TEST(TransportVsPathTracer, PathMethodMatchesTheIndependentTracerDirectAndSingleScattering) {
+  ExpectPathMethodMatchesPathTracer(1);
+}
+
+TEST(TransportVsPathTracer, PathMethodMatchesTheIndependentTracerMultipleScattering) {
+  ExpectPathMethodMatchesPathTracer(4);
 }
 
 }  // namespace

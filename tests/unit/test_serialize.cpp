@@ -204,7 +204,7 @@ TEST(Serialize, HugeCountsAreRejectedBeforeAllocating) {
 
 TEST(Serialize, EveryTruncationAndRandomCorruptionFailsCleanly) {
   const std::vector<Bytes> inputs = {SerializeLightSet(SampleLights()), SerializeReceiverSet(SampleReceivers()),
-                                     SerializeTaskOutput(TaskOutput{{RGBAccum{1, 2, 3}}, {9, 9}, {}, {{"k", 1}}})};
+                                     SerializeTaskOutput(TaskOutput{{RGBAccum{1, 2, 3}}, {0.5}, {9, 9}, {}, {{"k", 1}}})};
   for (size_t which = 0; which < inputs.size(); ++which) {
     const Bytes& full = inputs[which];
     auto decode = [which](ByteView v) {

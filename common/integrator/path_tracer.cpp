@@ -1,0 +1,205 @@
+#include "common/integrator/path_tracer.h"
+
+#include <embree3/rtcore.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include "common/scene/phase.h"
+
+namespace lightfarm {
+
+namespace {
+
+// Veach's power heuristic (β = 2) for one sample from each of two strategies.
+float PowerHeuristic(float a, float b) {
+  const float a2 = a * a, b2 = b * b;
+  if (std::isinf(a2)) return 1.f;
+  return a2 + b2 > 0 ? a2 / (a2 + b2) : 0.f;
+}
+
+constexpr int kMaxPassthrough = 64;  // interface crossings without scattering before giving up
+
+}  // namespace
+
+PathTracer::PathTracer(const Scene& scene, const PathTracerOptions& options)
+    : scene_(scene), options_(options), lights_(scene) {}
+
+float PathTracer::HitWeight(float pdf_scatter, float pdf_light) const {
+  switch (options_.strategy) {
+    case PathStrategy::kBSDF: return 1.f;
+    case PathStrategy::kLight: return 0.f;
+    case PathStrategy::kMIS: break;
+  }
+  return PowerHeuristic(pdf_scatter, pdf_light);
+}
+
+RGB PathTracer::ShadowRay(Vec3 o, const LightSample& ls, int medium, Rng& rng,
+                          PathCounters* counters) const {
+  Vec3 target, dir;
+  float tfar;
+  if (ls.infinite_distance) {
+    dir = ls.wi;
+    tfar = kInfinity;
+  } else {
+    // End just short of the light, off its surface, so the emitter does not occlude itself.
+    target = ls.area ? OffsetRayOrigin(ls.p_light, ls.n_light, -ls.wi) : ls.p_light;
+    dir = target - o;
+    tfar = 1.f - 1e-4f;
+  }
+  if (!IsFinite(o) || !IsFinite(dir)) return RGB(0.f);
+  RTCRay ray;
+  ray.org_x = o.x; ray.org_y = o.y; ray.org_z = o.z;
+  ray.dir_x = dir.x; ray.dir_y = dir.y; ray.dir_z = dir.z;
+  ray.tnear = 0.f;
+  ray.tfar = tfar;
+  ray.time = 0.f;
+  ray.mask = kMaskOpaque;
+  ray.id = 0;
+  ray.flags = 0;
+  scene_.Occluded(&ray, 1);
+  ++counters->shadow_rays;
+  if (!(ray.tfar >= 0.f)) return RGB(0.f);  // Embree sets tfar = -inf when occluded
+  if (!scene_.has_media()) return RGB(1.f);
+  // Ratio tracking through every medium the segment crosses (interfaces do not occlude).
+  return ls.infinite_distance ? scene_.TransmittanceAlong(o, ls.wi, kInfinity, medium, rng)
+                              : scene_.Transmittance(o, o + dir * tfar, medium, rng);
+}
+
+RGB PathTracer::LightAtSurface(const SurfaceHit& hit, const Material& m, const Frame& frame,
+                               Vec3 wo_local, int medium, Rng& rng, PathCounters* counters) const {
+  const float u_pick = rng.Uniform();
+  const Vec2 u{rng.Uniform(), rng.Uniform()};
+  const std::optional<LightSample> ls = lights_.Sample(hit.p, u_pick, u);
+  if (!ls) return RGB(0.f);
+  const Vec3 wi_local = frame.ToLocal(ls->wi);
+  const RGB f = EvalBSDF(m, wo_local, wi_local, TransportMode::kRadiance) * std::abs(wi_local.z);
+  if (f.IsBlack()) return RGB(0.f);
+  const int start = scene_.MediumAfter(hit, ls->wi, medium);
+  const RGB tr = ShadowRay(OffsetRayOrigin(hit.p, hit.ng, ls->wi), *ls, start, rng, counters);
+  if (tr.IsBlack()) return RGB(0.f);
+  float w = 1.f;
+  if (!ls->delta && options_.strategy == PathStrategy::kMIS)
+    w = PowerHeuristic(ls->pdf, PdfBSDF(m, wo_local, wi_local, TransportMode::kRadiance));
+  return f * ls->L * tr * (w / ls->pdf);
+}
+
+RGB PathTracer::LightInMedium(Vec3 p, Vec3 d_in, int medium, Rng& rng, PathCounters* counters) const {
+  const float u_pick = rng.Uniform();
+  const Vec2 u{rng.Uniform(), rng.Uniform()};
+  const std::optional<LightSample> ls = lights_.Sample(p, u_pick, u);
+  if (!ls) return RGB(0.f);
+  // Travel-direction convention (phase.h): cos between the incoming and the outgoing direction.
+  const float phase = HenyeyGreenstein(Dot(d_in, ls->wi), scene_.media()[medium].g());
+  if (!(phase > 0)) return RGB(0.f);
+  const RGB tr = ShadowRay(p, *ls, medium, rng, counters);
+  if (tr.IsBlack()) return RGB(0.f);
+  float w = 1.f;
+  if (!ls->delta && options_.strategy == PathStrategy::kMIS) w = PowerHeuristic(ls->pdf, phase);
+  return ls->L * tr * (phase * w / ls->pdf);
+}
+
+RGB PathTracer::Li(Ray ray, Rng& rng, PathCounters* counters) const {
+  ++counters->paths;
+  RGB L(0.f), beta(1.f);
+  float eta_scale = 1.f;
+  int depth = 0, passthrough = 0;
+  int medium = scene_.camera_medium();
+  // The last scattering vertex and the density its direction was sampled with, for the MIS
+  // weight of an emitter the ray finds; `specular`: that density was a delta (or the camera's).
+  bool specular = true;
+  Vec3 prev_p = ray.o;
+  float prev_pdf = 0;
+  const bool use_lights = options_.strategy != PathStrategy::kBSDF && !lights_.empty();
+  for (;;) {
+    SurfaceHit hit;
+    const bool found = scene_.Intersect(ray, &hit);
+    bool scattered = false;
+    if (medium >= 0) {
+      const Medium& med = scene_.media()[medium];
+      const FreePathSample fp = med.SampleFreePath({ray.o, ray.d, found ? hit.t : kInfinity}, rng);
+      beta *= fp.weight;
+      if (beta.IsBlack() || !beta.IsFinite()) break;
+      if (fp.scattered) {
+        if (depth++ >= options_.max_depth) break;
+        ++counters->vertices;
+        passthrough = 0;
+        const Vec3 p = ray.o + ray.d * fp.t;
+        if (use_lights) L += beta * LightInMedium(p, ray.d, medium, rng, counters);
+        float pdf = 0;
+        const Vec3 wi = SampleHenyeyGreenstein(ray.d, med.g(), rng.Uniform(), rng.Uniform(), &pdf);
+        // HG is sampled exactly: phase / pdf = 1, beta is unchanged.
+        scattered = true;
+        specular = false;
+        prev_p = p;
+        prev_pdf = pdf;
+        ray = {p, wi, kInfinity};
+      }
+    }
+    if (!scattered) {
+      // The ray reached its surface (or escaped) without scattering in a medium.
+      if (!found) {
+        ++counters->escaped;
+        for (uint32_t i = 0; i < scene_.infinite_emitters().size(); ++i) {
+          const RGB Le = scene_.infinite_emitters()[i].Le(ray.d);
+          if (Le.IsBlack()) continue;
+          const float w = specular ? 1.f : HitWeight(prev_pdf, lights_.PdfInfinite(i, ray.d));
+          L += beta * Le * w;
+        }
+        break;
+      }
+      const Vec3 wo = -ray.d;
+      const Shape& shape = scene_.shapes()[hit.shape];
+      if (shape.area_emitter >= 0) {
+        const RGB Le = scene_.EmittedRadiance(hit, wo);
+        if (!Le.IsBlack()) {
+          const float w = specular ? 1.f
+                                   : HitWeight(prev_pdf, lights_.PdfArea(uint32_t(shape.area_emitter), prev_p, hit));
+          L += beta * Le * w;
+        }
+      }
+      const Material& m = scene_.materials()[shape.material];
+      const uint32_t flags = MaterialFlags(m);
+      if (flags == 0) {  // a surface that only bounds a medium: cross it, no vertex
+        if (++passthrough > kMaxPassthrough) break;
+        medium = scene_.MediumAfter(hit, ray.d, medium);
+        ray.o = OffsetRayOrigin(hit.p, hit.ng, ray.d);
+        ray.tmax = kInfinity;
+        continue;
+      }
+      if (depth++ >= options_.max_depth) break;
+      ++counters->vertices;
+      passthrough = 0;
+      const Frame frame(hit.ns);
+      const Vec3 wo_local = frame.ToLocal(wo);
+      if (use_lights && !IsPurelySpecular(flags))
+        L += beta * LightAtSurface(hit, m, frame, wo_local, medium, rng, counters);
+      const float uc = rng.Uniform();
+      const Vec2 u{rng.Uniform(), rng.Uniform()};
+      const std::optional<BSDFSample> bs = SampleBSDF(m, wo_local, uc, u, TransportMode::kRadiance);
+      if (!bs || !(bs->pdf > 0) || bs->f.IsBlack()) break;
+      const Vec3 wi = frame.FromLocal(bs->wi);
+      beta *= bs->f * (std::abs(bs->wi.z) / bs->pdf);
+      if (bs->flags & kBxDFTransmission) eta_scale *= bs->eta * bs->eta;
+      specular = bs->IsSpecular();
+      prev_p = hit.p;
+      prev_pdf = bs->pdf;
+      medium = scene_.MediumAfter(hit, wi, medium);
+      ray = {OffsetRayOrigin(hit.p, hit.ng, wi), wi, kInfinity};
+    }
+    if (beta.IsBlack() || !beta.IsFinite()) break;
+    // Russian roulette (pbrt-v4): survive with the throughput's largest channel, after two vertices.
+    const float rr = (beta * eta_scale).Max();
+    if (rr < 1.f && depth > 1) {
+      const float q = std::max(0.f, 1.f - rr);
+      if (rng.Uniform() < q) {
+        ++counters->roulette;
+        break;
+      }
+      beta = beta / (1.f - q);
+    }
+  }
+  return L;
+}
+
+}  // namespace lightfarm

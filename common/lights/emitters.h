@@ -1,0 +1,61 @@
+// The scene's emitters as light sources for sampling: which emitter (by power, the choice both
+// particle tracing and next-event estimation make) and a point or direction on it as seen from a
+// point in the scene (pbrt-v4's PowerLightSampler and Light::SampleLi / PDF_Li).
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <vector>
+
+#include "common/scene/scene.h"
+
+namespace lightfarm {
+
+// One emitter as a source of light.
+struct EmitterRef {
+  enum Kind { kArea, kPoint, kDistant, kInfinite } kind;
+  uint32_t index;  // into the scene's list of that kind
+  RGB power;       // emitted power Φ (distant and infinite: through the scene's bounding disk)
+};
+
+// Every emitter of the scene with its power; scene_radius bounds the scene (distant and infinite
+// lights deliver their power through a disk of that radius).
+std::vector<EmitterRef> CollectEmitters(const Scene& scene, float scene_radius);
+
+// Light arriving at a reference point from one sampled point or direction of an emitter.
+struct LightSample {
+  RGB L;              // radiance (area, infinite) or intensity / d² (point) or irradiance (distant)
+  Vec3 wi;            // unit, from the reference point towards the light
+  Vec3 p_light;       // the point on the light (unused when `infinite_distance`)
+  Vec3 n_light;       // its emitting-side normal (area lights), for the shadow ray's end offset
+  bool infinite_distance = false;  // distant and infinite lights: the shadow ray is unbounded
+  bool delta = false;  // point, spot and distant lights: BSDF sampling can never hit them
+  bool area = false;
+  // Probability density of this sample: the emitter's selection probability times the solid-angle
+  // density at the reference point (delta lights: the selection probability alone).
+  float pdf = 0;
+};
+
+class EmitterSampler {
+ public:
+  explicit EmitterSampler(const Scene& scene);
+  bool empty() const { return cdf_.empty(); }
+  // Picks an emitter ∝ the luminance of its power with u_pick and samples it as seen from p.
+  // nullopt when the sample carries nothing (back of a one-sided emitter, zero pdf).
+  std::optional<LightSample> Sample(Vec3 p, float u_pick, Vec2 u) const;
+  // The density Sample(p, ...) has of reaching `hit`, a point on area emitter `emitter`, per
+  // solid angle at p (selection included): for MIS weights of paths that hit the emitter.
+  float PdfArea(uint32_t emitter, Vec3 p, const SurfaceHit& hit) const;
+  // Same for infinite light `emitter` and the direction w (pointing away from the scene).
+  float PdfInfinite(uint32_t emitter, Vec3 w) const;
+
+ private:
+  float SelectProbability(size_t slot) const;
+
+  const Scene& scene_;
+  std::vector<EmitterRef> emitters_;
+  std::vector<double> cdf_;  // cumulative luminance of power, normalised
+  std::vector<int> area_slot_, infinite_slot_;  // emitter index of that kind → slot in emitters_
+};
+
+}  // namespace lightfarm
