@@ -1,5 +1,6 @@
 // `lightfarm bench SCENE --out-dir DIR ...`: what accuracy costs in time. Sweeps every method's
-// quality knob against a cached brute-force reference with the same lights and writes
+// quality knob (the path tracer's samples among them) against a cached brute-force reference
+// with the same lights and against the truth (a converged image: truth.h), and writes
 // results.csv (a row per run, flushed as it ends), plots, heatmaps, a contact sheet and
 // report.md (common/bench/). Ctrl-C stops after the current run and still writes the report.
 #include <tbb/global_control.h>
@@ -34,7 +35,8 @@ extern "C" void OnInterrupt(int) {
 }
 
 struct BenchArgs {
-  std::string scene, out_dir, methods, settings, lights = "10000", resolution, filter, cache_dir;
+  std::string scene, out_dir, methods, settings, lights = "10000", resolution, filter, cache_dir, truth;
+  double truth_noise = 0.01, truth_max_seconds = 3600;
   std::vector<std::string> params;
   int spp = 1, repeats = 3, threads = 0;
   unsigned long long seed = 0;
@@ -91,6 +93,9 @@ void RunBenchCommand(const BenchArgs& a) {
   o.repeats = a.repeats;
   o.reference_pixels = a.reference_pixels;
   o.cache_dir = a.cache_dir.empty() ? DefaultBenchCacheDir() : a.cache_dir;
+  o.truth = a.truth;
+  o.truth_noise = a.truth_noise;
+  o.truth_max_seconds = a.truth_max_seconds;
 
   std::unique_ptr<tbb::global_control> limit;
   if (a.threads > 0)
@@ -127,7 +132,7 @@ void RunBenchCommand(const BenchArgs& a) {
 void AddBenchCommand(CLI::App& app) {
   auto a = std::make_shared<BenchArgs>();
   CLI::App* cmd = app.add_subcommand(
-      "bench", "Error versus time of every method's quality knob against brute force");
+      "bench", "Error versus time of every method's quality knob against brute force and the truth");
   cmd->add_option("scene", a->scene, "pbrt-v4 scene file")->required()->check(CLI::ExistingFile);
   cmd->add_option("--out-dir", a->out_dir, "Where results.csv, plots and report.md go")->required();
   cmd->add_option("--methods", a->methods, "Comma-separated methods (default: all with a sweep)");
@@ -148,6 +153,15 @@ void AddBenchCommand(CLI::App& app) {
                   "there (0: the full image)");
   cmd->add_option("--cache-dir", a->cache_dir,
                   "Reference cache (default: $LIGHTFARM_CACHE/bench or ~/.cache/lightfarm/bench)");
+  cmd->add_option("--truth", a->truth,
+                  "What every run is also measured against: an image FILE (area-averaged to the bench's "
+                  "resolution), `path` (rendered here until --truth-noise, cached), or `none`. Default: the "
+                  "scene's reference.exr when one sits beside it, else `path`");
+  cmd->add_option("--truth-noise", a->truth_noise,
+                  "A path-traced truth's target noise: the rel_l1 its own noise adds")
+      ->check(CLI::Range(1e-5, 0.5))->capture_default_str();
+  cmd->add_option("--truth-max-seconds", a->truth_max_seconds, "Longest a path-traced truth may render")
+      ->check(CLI::Range(1.0, 1e7))->capture_default_str();
   cmd->add_option("--threads", a->threads, "Threads (0 = all cores)")->check(CLI::Range(0, 4096));
   cmd->add_flag("--no-plots", a->no_plots, "Write the gnuplot script and data but do not run gnuplot");
   cmd->callback([a] { RunBenchCommand(*a); });

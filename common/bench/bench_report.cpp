@@ -24,8 +24,10 @@ namespace fs = std::filesystem;
 
 namespace {
 
+// The median of the finite values; NaN when there are none.
 double Median(std::vector<double> v) {
-  if (v.empty()) return 0;
+  v.erase(std::remove_if(v.begin(), v.end(), [](double x) { return !std::isfinite(x); }), v.end());
+  if (v.empty()) return std::nan("");
   std::sort(v.begin(), v.end());
   const size_t n = v.size();
   return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
@@ -121,6 +123,23 @@ void WritePlots(const std::vector<SettingSummary>& sums, const std::string& dir,
     }
   }
   {
+    std::ofstream f(plots / "error_vs_time_truth.dat");
+    f << "# time_s truth_rel_l1 truth_rel_l2 fireflies (medians), " << lights << " lights; brute last\n";
+    for (const std::string& m : methods) {
+      std::vector<const SettingSummary*> pts;
+      for (const SettingSummary& s : sums)
+        if (s.method == m && s.lights == lights && std::isfinite(s.truth_rel_l1)) pts.push_back(&s);
+      std::sort(pts.begin(), pts.end(), [](auto a, auto b) { return a->time_s < b->time_s; });
+      f << "# " << m << "\n";
+      for (const SettingSummary* s : pts) f << s->time_s << " " << s->truth_rel_l1 << " " << s->truth_rel_l2 << " " << s->fireflies << "\n";
+      f << "\n\n";
+    }
+    f << "# brute\n";
+    if (const SettingSummary* b = Brute(sums, lights))
+      if (std::isfinite(b->truth_rel_l1)) f << b->time_s << " " << b->truth_rel_l1 << " " << b->truth_rel_l2 << " " << b->fireflies << "\n";
+    f << "\n\n";
+  }
+  {
     std::ofstream f(plots / "error_vs_lights.dat");
     f << "# lights time_to_" << fixed_error << "_s (per method; brute last)\n";
     for (const std::string& m : methods) {
@@ -153,6 +172,13 @@ void WritePlots(const std::vector<SettingSummary>& sums, const std::string& dir,
        << " using 1:2 with linespoints lw 2 title '" << PlotName(methods[i]) << "'";
   if (methods.empty()) gp << "NaN notitle";
   gp << "\nunset arrow\nunset label\n";
+  gp << "set output 'error_vs_time_truth.png'\nset title 'Error against the truth vs time, " << lights
+     << " lights (median of repeats)'\nset xlabel 'wall time (s)'\nset ylabel 'rel_l1 against the truth'\nplot ";
+  for (size_t i = 0; i < methods.size(); ++i)
+    gp << "'plots/error_vs_time_truth.dat' index " << i << " using 1:2 with linespoints lw "
+       << (methods[i] == "path" ? "3 dt 2" : "2") << " title '" << PlotName(methods[i]) << "', ";
+  gp << "'plots/error_vs_time_truth.dat' index " << methods.size()
+     << " using 1:2 with points pt 7 ps 1.5 lc rgb 'black' title 'brute (same lights)'\n";
   gp << "set output 'error_vs_lights.png'\nset title 'Time to reach rel_l2 <= "
      << Fmt("%g", 100 * fixed_error) << "% vs number of lights'\nset xlabel 'lights'\nset ylabel 'time (s)'\n";
   gp << "plot ";
@@ -243,6 +269,9 @@ std::vector<SettingSummary> Summarize(const std::vector<BenchRow>& rows) {
     s.shadow_rays_per_pixel = med(&BenchRow::shadow_rays_per_pixel);
     s.elements = med(&BenchRow::elements);
     s.peak_rss_mb = med(&BenchRow::peak_rss_mb);
+    s.truth_rel_l1 = med(&BenchRow::truth_rel_l1);
+    s.truth_rel_l2 = med(&BenchRow::truth_rel_l2);
+    s.fireflies = med(&BenchRow::fireflies);
     s.estimated = g.front()->estimated;
     for (const BenchRow* r : g)
       if (!r->image.empty()) s.image = r->image;
@@ -257,6 +286,25 @@ double TimeToReach(const std::vector<SettingSummary>& sums, const std::string& m
     if (s.method == method && s.lights == lights && s.rel_l2 <= error &&
         (best < 0 || s.time_s < best))
       best = s.time_s;
+  return best;
+}
+
+double TimeToReachTruth(const std::vector<SettingSummary>& sums, const std::string& method,
+                        size_t lights, double error) {
+  double best = -1;
+  for (const SettingSummary& s : sums)
+    if (s.method == method && s.lights == lights && s.truth_rel_l1 <= error && (best < 0 || s.time_s < best))
+      best = s.time_s;
+  return best;
+}
+
+const SettingSummary* BestWithin(const std::vector<SettingSummary>& sums, const std::string& method,
+                                 size_t lights, double seconds) {
+  const SettingSummary* best = nullptr;
+  for (const SettingSummary& s : sums)
+    if (s.method == method && s.lights == lights && s.time_s <= seconds && std::isfinite(s.truth_rel_l1) &&
+        (!best || s.truth_rel_l1 < best->truth_rel_l1))
+      best = &s;
   return best;
 }
 
@@ -347,6 +395,102 @@ void WriteBenchReport(const std::vector<BenchRow>& rows, const ReportOptions& o)
   md << "\nPeak RSS is the process's high-water mark during that run (reset before each run); "
      << "per million lights and per megapixel it is the brute row's value divided by "
      << "lights/10⁶ and by pixels/10⁶.\n";
+
+  // Against the truth: what a user sees, and how the methods compare with a path tracer.
+  const BenchTruthInfo truth = ReadBenchTruthInfo(o.out_dir);
+  bool any_truth = false;
+  for (const SettingSummary& s : sums) any_truth = any_truth || std::isfinite(s.truth_rel_l1);
+  if (truth.present && any_truth) {
+    const std::vector<double> truth_targets = {0.10, 0.05, 0.02};
+    md << "\n## Against the truth\n\n"
+       << "- truth: " << truth.label << ".\n"
+       << "- `truth rel_l1` is each run's error against it: what a user sees. Brute force's own "
+          "(the first row of each light count) is the virtual lights' error (their number, the "
+          "clamp, the transport they cannot carry); a method's error against brute force is its "
+          "approximation of them. `fireflies`: share of pixels more than 3× above or below the "
+          "truth's 3×3 local mean.\n";
+    if (std::isfinite(truth.noise_rel_l1))
+      md << "- the truth's own noise adds up to about " << Fmt("%.4f", truth.noise_rel_l1)
+         << " to every rel_l1 below; differences smaller than that are not measured.\n";
+    md << "\n### Time to reach an error against the truth\n\n"
+       << "Fastest setting whose median truth rel_l1 is at or below the target; `× path` is "
+          "the path tracer's time over the method's (above 1: the method is faster).\n\n| lights | method |";
+    for (double e : truth_targets) md << " time to " << Fmt("%g", 100 * e) << "% | × path |";
+    md << "\n|---|---|";
+    for (size_t i = 0; i < truth_targets.size(); ++i) md << "---|---|";
+    md << "\n";
+    for (size_t l : counts) {
+      if (const SettingSummary* b = Brute(sums, l))
+        md << "| " << l << " | brute (reference) | "
+           << (std::isfinite(b->truth_rel_l1) ? "rel_l1 " + Fmt("%.4f", b->truth_rel_l1) + " in " + Seconds(b->time_s)
+                                               : std::string("—"))
+           << " | | | | | |\n";
+      for (const std::string& m : methods) {
+        md << "| " << l << " | " << m << " |";
+        for (double e : truth_targets) {
+          const double t = TimeToReachTruth(sums, m, l, e);
+          const double tp = TimeToReachTruth(sums, "path", l, e);
+          md << " " << Seconds(t) << " | "
+             << (t > 0 && tp > 0 ? Fmt("%.2f×", tp / t) : std::string("—")) << " |";
+        }
+        md << "\n";
+      }
+    }
+    // Three budgets spanning the measured times (geometrically), the last one the longest run.
+    double tmin = -1, tmax = 0;
+    for (const SettingSummary& s : sums)
+      if (s.method != "brute" && std::isfinite(s.truth_rel_l1)) {
+        tmin = tmin < 0 ? s.time_s : std::min(tmin, s.time_s);
+        tmax = std::max(tmax, s.time_s);
+      }
+    std::vector<double> budgets;
+    for (int k = 1; k <= 3 && tmin > 0; ++k) budgets.push_back(tmin * std::pow(tmax / tmin, k / 3.0));
+    md << "\n### Equal time\n\nEach method's most accurate setting (median truth rel_l1) whose "
+          "median time is within the budget; `× path` is the path tracer's error over the "
+          "method's at that budget (above 1: the method is better).\n\n| lights | budget | method | "
+          "setting | time | truth rel_l1 | × path | truth rel_l2 | fireflies |\n|---|---|---|---|---|---|---|---|---|\n";
+    for (size_t l : counts)
+      for (double budget : budgets) {
+        const SettingSummary* path = BestWithin(sums, "path", l, budget);
+        for (const std::string& m : methods) {
+          const SettingSummary* s = BestWithin(sums, m, l, budget);
+          md << "| " << l << " | " << Seconds(budget) << " | " << m << " | ";
+          if (!s) {
+            md << "— | | | | | |\n";
+            continue;
+          }
+          md << "`" << s->setting << "` | " << Seconds(s->time_s) << " | " << Fmt("%.4f", s->truth_rel_l1) << " | "
+             << (path ? Fmt("%.2f×", path->truth_rel_l1 / s->truth_rel_l1) : std::string("—")) << " | "
+             << Fmt("%.4f", s->truth_rel_l2) << " | " << Fmt("%.2f%%", 100 * s->fireflies) << " |\n";
+        }
+      }
+    md << "\n![error against the truth vs time](error_vs_time_truth.png)\n";
+    // Heatmaps against the truth at the middle budget, for the largest light count.
+    if (o.images && budgets.size() == 3 && !truth.image.empty()) {
+      const fs::path dir(o.out_dir);
+      fs::create_directories(dir / "heatmaps");
+      const Image timg = ReadImage((dir / truth.image).string());
+      WritePNG((dir / "heatmaps/truth.png").string(), timg);
+      std::vector<std::pair<std::string, std::string>> top = {{"truth", (dir / "heatmaps/truth.png").string()}};
+      std::vector<std::string> bottom = {""};
+      md << "\n### At " << Seconds(budgets[1]) << " (" << top_lights << " lights), against the truth\n\n"
+         << "| method | setting | truth rel_l1 | image | heatmap |\n|---|---|---|---|---|\n";
+      for (const std::string& m : methods) {
+        const SettingSummary* s = BestWithin(sums, m, top_lights, budgets[1]);
+        if (!s || s->image.empty()) continue;
+        const Image img = ReadImage((dir / s->image).string());
+        const std::string png = "heatmaps/" + m + "_truth.png", heat = "heatmaps/" + m + "_truth_error.png";
+        WritePNG((dir / png).string(), img);
+        WritePNG((dir / heat).string(), ErrorHeatmap(timg, img));
+        top.push_back({m + " " + s->setting, (dir / png).string()});
+        bottom.push_back((dir / heat).string());
+        md << "| " << m << " | `" << s->setting << "` | " << Fmt("%.4f", s->truth_rel_l1) << " | ![](" << png
+           << ") | ![](" << heat << ") |\n";
+      }
+      WriteContactSheet(top, bottom, (dir / "contact_sheet_truth.png").string());
+      md << "\n![contact sheet against the truth](contact_sheet_truth.png)\n";
+    }
+  }
 
   // Heatmaps and the contact sheet at one equal-time point, for the largest light count.
   if (o.images) {

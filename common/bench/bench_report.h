@@ -3,6 +3,7 @@
 // contact sheet and report.md. Nothing here renders; the numbers come from the CSV only.
 #pragma once
 
+#include <cmath>
 #include <string>
 #include <vector>
 
@@ -17,6 +18,7 @@ struct SettingSummary {
   int runs = 0;
   double time_s = 0, rel_l2 = 0, rel_l1 = 0, shadow_rays_per_pixel = 0, shadow_rays = 0;
   double elements = 0, peak_rss_mb = 0;
+  double truth_rel_l1 = NAN, truth_rel_l2 = NAN, fireflies = NAN;  // NaN: no truth
   bool estimated = false;
   std::string image;  // first repeat's image
 };
@@ -28,6 +30,15 @@ std::vector<SettingSummary> Summarize(const std::vector<BenchRow>& rows);
 // a negative value when no setting reached it.
 double TimeToReach(const std::vector<SettingSummary>& summaries, const std::string& method,
                    size_t lights, double error);
+
+// Same, by the median rel_l1 against the truth.
+double TimeToReachTruth(const std::vector<SettingSummary>& summaries, const std::string& method,
+                        size_t lights, double error);
+
+// The most accurate setting (median truth rel_l1) of a method whose median time is within
+// `seconds`; nullptr when none is.
+const SettingSummary* BestWithin(const std::vector<SettingSummary>& summaries, const std::string& method,
+                                 size_t lights, double seconds);
 
 struct ReportOptions {
   std::string out_dir;

@@ -8,6 +8,8 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <map>
+#include <optional>
 #include <sstream>
 
 #include "common/image/image_io.h"
@@ -28,7 +30,8 @@ const char* kColumns[] = {"scene", "lights", "width", "height", "spp", "seed", "
                           "setting", "repeat", "time_total_s", "time_plan_s", "time_gather_s",
                           "shadow_rays", "shadow_rays_per_pixel", "elements",
                           "fraction_evaluated", "rel_l2", "rel_l1", "peak_rss_mb", "reference",
-                          "estimated", "phases", "image"};
+                          "estimated", "phases", "image", "truth_rel_l1", "truth_rel_l2",
+                          "fireflies"};
 
 // Settings hold commas ("rows=50,columns=100"); the CSV keeps them space-separated so that no
 // field needs quoting and plain tools (cut, gnuplot, awk) read the file.
@@ -113,7 +116,8 @@ std::string ToCsvLine(const BenchRow& r) {
                                 Num(r.shadow_rays_per_pixel), Num(r.elements),
                                 Num(r.fraction_evaluated), Num(r.rel_l2), Num(r.rel_l1),
                                 Num(r.peak_rss_mb), r.reference, r.estimated ? "1" : "0",
-                                ToField(r.phases), ToField(r.image)};
+                                ToField(r.phases), ToField(r.image), Num(r.truth_rel_l1),
+                                Num(r.truth_rel_l2), Num(r.fireflies)};
   std::string line;
   for (const std::string& s : f) line += (line.empty() ? "" : ",") + s;
   return line;
@@ -123,10 +127,24 @@ std::vector<BenchRow> ReadBenchCsv(const std::string& path) {
   std::ifstream in(path);
   if (!in) throw std::runtime_error("cannot read " + path);
   std::string line;
-  if (!std::getline(in, line) || line != BenchCsvHeader())
-    throw std::runtime_error(path + ": not a lightfarm bench results.csv (header differs)");
+  if (!std::getline(in, line)) throw std::runtime_error(path + ": empty, not a lightfarm bench results.csv");
+  std::vector<std::string> header;
+  {
+    std::stringstream ss(line);
+    std::string cell;
+    while (std::getline(ss, cell, ',')) header.push_back(cell);
+  }
+  // Columns by name: every column up to `image` is required (the first format), later ones are
+  // optional so that cost models written before them still read.
+  std::map<std::string, size_t> column;
+  for (size_t i = 0; i < header.size(); ++i) column[header[i]] = i;
+  for (const char* c : kColumns) {
+    if (column.count(c)) continue;
+    if (std::string(c) == "truth_rel_l1" || std::string(c) == "truth_rel_l2" || std::string(c) == "fireflies")
+      continue;
+    throw std::runtime_error(path + ": not a lightfarm bench results.csv (no column " + c + ")");
+  }
   std::vector<BenchRow> rows;
-  const size_t ncols = std::size(kColumns);
   while (std::getline(in, line)) {
     if (line.empty()) continue;
     std::vector<std::string> f;
@@ -134,38 +152,77 @@ std::vector<BenchRow> ReadBenchCsv(const std::string& path) {
     std::string cell;
     while (std::getline(ss, cell, ',')) f.push_back(cell);
     if (!line.empty() && line.back() == ',') f.push_back("");
-    if (f.size() != ncols) throw std::runtime_error(path + ": row with " + std::to_string(f.size()) + " fields");
+    if (f.size() != header.size())
+      throw std::runtime_error(path + ": row with " + std::to_string(f.size()) + " fields, the header has " +
+                               std::to_string(header.size()));
+    auto get = [&](const char* name) -> const std::string& { return f[column.at(name)]; };
+    auto num = [&](const char* name) {
+      const auto it = column.find(name);
+      if (it == column.end() || f[it->second] == "nan" || f[it->second] == "-nan") return std::nan("");
+      return std::stod(f[it->second]);
+    };
     BenchRow r;
-    r.scene = f[0];
-    r.lights = std::stoull(f[1]);
-    r.width = std::stoi(f[2]);
-    r.height = std::stoi(f[3]);
-    r.spp = std::stoi(f[4]);
-    r.seed = std::stoull(f[5]);
-    r.method = f[6];
-    r.setting = FromField(f[7]);
-    r.repeat = std::stoi(f[8]);
-    r.time_total_s = std::stod(f[9]);
-    r.time_plan_s = std::stod(f[10]);
-    r.time_gather_s = std::stod(f[11]);
-    r.shadow_rays = std::stod(f[12]);
-    r.shadow_rays_per_pixel = std::stod(f[13]);
-    r.elements = std::stod(f[14]);
-    r.fraction_evaluated = std::stod(f[15]);
-    r.rel_l2 = std::stod(f[16]);
-    r.rel_l1 = std::stod(f[17]);
-    r.peak_rss_mb = std::stod(f[18]);
-    r.reference = f[19];
-    r.estimated = f[20] == "1";
-    r.phases = f[21];
-    r.image = f[22];
+    r.scene = get("scene");
+    r.lights = std::stoull(get("lights"));
+    r.width = std::stoi(get("width"));
+    r.height = std::stoi(get("height"));
+    r.spp = std::stoi(get("spp"));
+    r.seed = std::stoull(get("seed"));
+    r.method = get("method");
+    r.setting = FromField(get("setting"));
+    r.repeat = std::stoi(get("repeat"));
+    r.time_total_s = num("time_total_s");
+    r.time_plan_s = num("time_plan_s");
+    r.time_gather_s = num("time_gather_s");
+    r.shadow_rays = num("shadow_rays");
+    r.shadow_rays_per_pixel = num("shadow_rays_per_pixel");
+    r.elements = num("elements");
+    r.fraction_evaluated = num("fraction_evaluated");
+    r.rel_l2 = num("rel_l2");
+    r.rel_l1 = num("rel_l1");
+    r.peak_rss_mb = num("peak_rss_mb");
+    r.reference = get("reference");
+    r.estimated = get("estimated") == "1";
+    r.phases = get("phases");
+    r.image = get("image");
+    r.truth_rel_l1 = num("truth_rel_l1");
+    r.truth_rel_l2 = num("truth_rel_l2");
+    r.fireflies = num("fireflies");
     rows.push_back(std::move(r));
   }
   return rows;
 }
 
-std::vector<BenchRow> RunBench(const BenchOptions& o, const BenchProgress& progress) {
+BenchTruthInfo ReadBenchTruthInfo(const std::string& out_dir) {
+  BenchTruthInfo info;
+  std::ifstream in(fs::path(out_dir) / "truth.json");
+  if (!in) return info;
+  const nlohmann::json j = nlohmann::json::parse(in);
+  info.present = true;
+  info.label = j.value("label", "");
+  info.image = j.value("image", "");
+  info.noise_rel_l1 = j["noise_rel_l1"].is_number() ? j["noise_rel_l1"].get<double>() : std::nan("");
+  info.noise_rel_l2 = j["noise_rel_l2"].is_number() ? j["noise_rel_l2"].get<double>() : std::nan("");
+  return info;
+}
+
+std::vector<BenchRow> RunBench(const BenchOptions& options, const BenchProgress& progress,
+                               BenchTruthInfo* truth_info) {
+  BenchOptions o = options;
   if (o.repeats < 1) throw OptionError("--repeats must be >= 1");
+  const std::string truth_source = o.truth.empty() ? DefaultTruthSource(o.scene) : o.truth;
+  const bool use_truth = truth_source != "none";
+  // A truth image at another resolution is area-averaged to the bench's, which is a box filter
+  // over the bench's pixels: render with that filter too, or the filters' difference is measured.
+  if (use_truth && truth_source != "path" && o.filter.empty() && o.width > 0) {
+    const Image file = ReadImage(truth_source);
+    if (file.width != o.width || file.height != o.height) {
+      o.filter = "box";
+      spdlog::info("bench: the truth {} ({}x{}) is area-averaged to {}x{}, so every run uses the box filter "
+                   "(--filter overrides)", truth_source, file.width, file.height, o.width, o.height);
+    }
+  }
+  std::optional<Truth> truth;
   if (o.lights.empty()) throw OptionError("--lights needs at least one count");
   const std::vector<MethodSweep> sweeps = SweepsFor(o.methods, o.settings);
   fs::create_directories(o.out_dir);
@@ -207,6 +264,34 @@ std::vector<BenchRow> RunBench(const BenchOptions& o, const BenchProgress& progr
     ReferenceRequest req{o.scene, base, o.reference_pixels, o.cache_dir};
     BenchReference ref = GetReference(req);
     const int w = ref.image.width, h = ref.image.height;
+    if (use_truth && !truth) {
+      if (progress.update) progress.update("truth", done, total);
+      TruthRequest tr;
+      tr.scene = o.scene;
+      tr.source = truth_source;
+      tr.width = w;
+      tr.height = h;
+      tr.filter = o.filter;
+      tr.seed = o.seed;
+      tr.noise = o.truth_noise;
+      tr.max_seconds = o.truth_max_seconds;
+      tr.cache_dir = o.cache_dir;
+      truth = GetTruth(tr);
+      WriteEXR((fs::path(o.out_dir) / "truth.exr").string(), truth->image);
+      nlohmann::json j = {{"label", truth->label}, {"source", truth->source}, {"image", "truth.exr"},
+                          {"passes", truth->passes}, {"spp", truth->spp}, {"seconds", truth->seconds}};
+      j["noise_rel_l1"] = std::isfinite(truth->noise_rel_l1) ? nlohmann::json(truth->noise_rel_l1) : nlohmann::json();
+      j["noise_rel_l2"] = std::isfinite(truth->noise_rel_l2) ? nlohmann::json(truth->noise_rel_l2) : nlohmann::json();
+      std::ofstream(fs::path(o.out_dir) / "truth.json") << j.dump(2) << "\n";
+      if (truth_info) *truth_info = ReadBenchTruthInfo(o.out_dir);
+    }
+    auto measure_truth = [&](const Image& image, BenchRow* row) {
+      if (!truth) return;
+      const TruthMetrics m = CompareWithTruth(*truth, image);
+      row->truth_rel_l1 = m.rel_l1;
+      row->truth_rel_l2 = m.rel_l2;
+      row->fireflies = m.fireflies;
+    };
     BenchRow brow;
     brow.scene = o.scene;
     brow.lights = ref.lights;
@@ -224,6 +309,9 @@ std::vector<BenchRow> RunBench(const BenchOptions& o, const BenchProgress& progr
     brow.peak_rss_mb = ref.from_cache ? 0 : PeakMemoryMiB();
     brow.reference = ref.pixels.empty() ? "full" : "pixels:" + std::to_string(ref.pixels.size());
     brow.estimated = ref.extrapolated;
+    // Brute force against the truth: the virtual lights' own error (count, clamp, what they
+    // cannot carry). Only a full-image reference has an image to compare.
+    if (ref.pixels.empty()) measure_truth(ref.image, &brow);
     if (o.keep_images) {
       brow.image = img_dir + "/reference.exr";
       WriteEXR((fs::path(o.out_dir) / brow.image).string(), ref.image);
@@ -247,7 +335,15 @@ std::vector<BenchRow> RunBench(const BenchOptions& o, const BenchProgress& progr
           }
           RenderSettings s = base;
           s.method = m.method;
-          s.params.insert(s.params.end(), setting.params.begin(), setting.params.end());
+          for (const std::string& p : setting.params) {
+            // `spp=N` in a sweep is the camera samples (the path method's knob), not a parameter.
+            if (p.rfind("spp=", 0) == 0) {
+              s.spp = int(std::stol(p.substr(4)));
+              if (s.spp < 1) throw OptionError("sweep setting " + p + ": spp must be >= 1");
+            } else {
+              s.params.push_back(p);
+            }
+          }
           const uint64_t method_seed =
               rep == 0 ? o.seed : HashSeed({o.seed, kRepeatSeedStream, uint64_t(rep)});
           RunResult run;
@@ -278,6 +374,8 @@ std::vector<BenchRow> RunBench(const BenchOptions& o, const BenchProgress& progr
           ErrorMetrics err = CompareWithReference(ref, run.image);
           row.rel_l2 = err.rel_l2;
           row.rel_l1 = err.rel_l1;
+          row.spp = run.stats["spp"].get<int>();
+          measure_truth(run.image, &row);
           row.image.clear();
           if (o.keep_images && rep == 0) {
             row.image = img_dir + "/" + m.method + "_" + std::to_string(si) + ".exr";

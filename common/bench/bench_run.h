@@ -4,12 +4,14 @@
 #pragma once
 
 #include <atomic>
+#include <cmath>
 #include <functional>
 #include <string>
 #include <vector>
 
 #include "common/bench/reference.h"
 #include "common/bench/sweeps.h"
+#include "common/bench/truth.h"
 #include "common/farm/render_job.h"
 
 namespace lightfarm {
@@ -29,6 +31,11 @@ struct BenchOptions {
   size_t reference_pixels = 0;        // 0: full-image reference
   std::string cache_dir;              // reference cache; empty: no cache
   bool keep_images = true;            // write each setting's first image (for heatmaps, contact sheet)
+  // The truth every run is also measured against (truth.h): "" the scene's reference.exr or
+  // else a path-traced one, "path", an image file, or "none".
+  std::string truth;
+  double truth_noise = 0.01;          // a path-traced truth's target rel_l1 noise
+  double truth_max_seconds = 3600;    // and the time it may take
 };
 
 // One row of results.csv.
@@ -41,7 +48,9 @@ struct BenchRow {
   double time_total_s = 0, time_plan_s = 0, time_gather_s = 0;
   std::string phases;  // name=seconds;...
   double shadow_rays = 0, shadow_rays_per_pixel = 0, elements = 0, fraction_evaluated = 0;
-  double rel_l2 = 0, rel_l1 = 0;
+  double rel_l2 = 0, rel_l1 = 0;  // against same-lights brute force
+  // Against the truth (NaN without one, or for a pixel-subset brute-force reference row).
+  double truth_rel_l1 = NAN, truth_rel_l2 = NAN, fireflies = NAN;
   double peak_rss_mb = 0;
   std::string reference;  // "full" or "pixels:N"
   bool estimated = false;  // brute rows of a pixel-subset reference: time and rays extrapolated
@@ -50,7 +59,8 @@ struct BenchRow {
 
 std::string BenchCsvHeader();
 std::string ToCsvLine(const BenchRow& row);
-// Parses results.csv (header checked); throws std::runtime_error on a malformed file.
+// Parses results.csv by its header's column names (files written before the truth columns
+// existed read with NaN there); throws std::runtime_error on a malformed file.
 std::vector<BenchRow> ReadBenchCsv(const std::string& path);
 
 struct BenchProgress {
@@ -58,9 +68,22 @@ struct BenchProgress {
   const std::atomic<bool>* stop = nullptr;  // set (e.g. by SIGINT): finish the current run, stop
 };
 
-// Runs the bench, writing out_dir/results.csv (and images under out_dir/images). Returns the
-// rows written. Methods that fail (a scene they cannot render) are logged and skipped.
-std::vector<BenchRow> RunBench(const BenchOptions& options, const BenchProgress& progress);
+// What a bench measured against, for the report.
+struct BenchTruthInfo {
+  bool present = false;
+  std::string label;  // Truth::label
+  double noise_rel_l1 = NAN, noise_rel_l2 = NAN;
+  std::string image;  // the truth at the bench's resolution, relative to the out dir
+};
+
+// Runs the bench, writing out_dir/results.csv (and images under out_dir/images, the truth as
+// out_dir/truth.exr and truth.json). Returns the rows written. Methods that fail (a scene they
+// cannot render) are logged and skipped. A sweep setting's `spp=N` sets the camera samples.
+std::vector<BenchRow> RunBench(const BenchOptions& options, const BenchProgress& progress,
+                               BenchTruthInfo* truth_info = nullptr);
+
+// Reads out_dir/truth.json as RunBench wrote it (present = false when there is none).
+BenchTruthInfo ReadBenchTruthInfo(const std::string& out_dir);
 
 // Peak resident set size of this process since the last ResetPeakMemory(), in MiB.
 void ResetPeakMemory();

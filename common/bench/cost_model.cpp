@@ -75,7 +75,7 @@ TargetChoice ChooseForTargetError(const std::string& method, double target,
   // Cost scales with the camera samples (receivers); lights enter through the bench count.
   const double bench_samples = double(any.width) * any.height * any.spp;
   const int w = s.width > 0 ? s.width : any.width, h = s.height > 0 ? s.height : any.height;
-  const double samples = double(w) * h * s.spp;
+  const double samples = double(w) * h * std::max(1, s.spp);  // 0: the default, 1 sample
   c.predicted_s = pick->time_s * (bench_samples > 0 ? samples / bench_samples : 1.0);
   return c;
 }

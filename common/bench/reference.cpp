@@ -106,7 +106,7 @@ void SaveReference(const ReferenceRequest& r, const BenchReference& ref) {
   meta["lights_requested"] = r.settings.lights;
   meta["lights"] = ref.lights;
   meta["resolution"] = {ref.image.width, ref.image.height};
-  meta["spp"] = r.settings.spp;
+  meta["spp"] = std::max(1, r.settings.spp);
   meta["seed"] = r.settings.seed;
   meta["params"] = r.settings.params;
   meta["pixels"] = ref.pixels;
@@ -185,7 +185,7 @@ std::string ReferenceKey(const ReferenceRequest& r) {
   h.U64(uint64_t(s.width));
   h.U64(uint64_t(s.height));
   h.String(s.filter);
-  h.U64(uint64_t(s.spp));
+  h.U64(uint64_t(std::max(1, s.spp)));  // brute: 0 (the default) is 1 sample
   h.U64(s.lights);
   h.U64(s.seed);
   for (const std::string& p : s.params) h.String(p);

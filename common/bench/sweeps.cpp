@@ -30,6 +30,9 @@ const std::vector<std::pair<std::string, std::string>>& SweepTable() {
       // Huo 2016: sampling ratio rho and the error threshold sigma.
       {"adaptive-completion", "rho=0.05,sigma=0.05;rho=0.1,sigma=0.02;rho=0.1,sigma=0.01;"
                               "rho=0.1,sigma=0.005;rho=0.2,sigma=0.002"},
+      // The path tracer: what a user would run instead. Its knob is the samples per pixel (a
+      // sweep's spp=N sets them; bench_run.cpp); it uses no virtual lights.
+      {"path", "spp=4;spp=16;spp=64;spp=256;spp=1024"},
   };
   return table;
 }

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <atomic>
 #include <filesystem>
 #include <fstream>
@@ -12,6 +13,9 @@
 #include "common/bench/bench_run.h"
 #include "common/bench/cost_model.h"
 #include "common/bench/reference.h"
+#include "common/bench/truth.h"
+#include "common/image/image_io.h"
+#include "common/image/metrics.h"
 #include "tests/common/test_util.h"
 
 namespace lightfarm {
@@ -65,7 +69,7 @@ TEST(Bench, CsvSchemaRoundTripAndReport) {
   EXPECT_EQ(header,
             "scene,lights,width,height,spp,seed,method,setting,repeat,time_total_s,time_plan_s,"
             "time_gather_s,shadow_rays,shadow_rays_per_pixel,elements,fraction_evaluated,rel_l2,"
-            "rel_l1,peak_rss_mb,reference,estimated,phases,image");
+            "rel_l1,peak_rss_mb,reference,estimated,phases,image,truth_rel_l1,truth_rel_l2,fireflies");
   const std::vector<BenchRow> back = ReadBenchCsv(dir.Path("out/results.csv"));
   ASSERT_EQ(back.size(), rows.size());
   for (size_t i = 1; i < rows.size(); ++i) {
@@ -92,6 +96,107 @@ TEST(Bench, CsvSchemaRoundTripAndReport) {
   for (const char* f : {"plots/plots.gp", "plots/error_vs_time.dat", "error_vs_time.png",
                         "error_vs_lights.png", "contact_sheet.png", "heatmaps/lightcuts_error.png"})
     EXPECT_TRUE(std::filesystem::exists(dir.Path(std::string("out/") + f))) << f;
+}
+
+// A bench with the path tracer and a path-traced truth: every row has its error against the
+// truth, and that error is what `compare` measures between the row's image and truth.exr; the
+// truth's noise is at or below the target; the report has the truth tables and plots.
+TEST(Bench, EveryRowIsMeasuredAgainstThePathTracedTruth) {
+  TempDir dir;
+  BenchOptions o = TinyBench(dir, CopyCornell(dir));
+  o.methods = {"lightcuts", "path"};
+  o.truth = "path";
+  o.truth_noise = 0.02;
+  BenchTruthInfo info;
+  const std::vector<BenchRow> rows = RunBench(o, {}, &info);
+  ASSERT_TRUE(info.present);
+  EXPECT_LE(info.noise_rel_l1, 0.02);
+  EXPECT_GT(info.noise_rel_l1, 0.0);
+  EXPECT_NE(info.label.find("path-traced"), std::string::npos);
+  const Image truth = ReadImage(dir.Path("out/truth.exr"));
+  ASSERT_EQ(truth.width, 16);
+  bool saw_path = false;
+  for (const BenchRow& r : rows) {
+    ASSERT_TRUE(std::isfinite(r.truth_rel_l1)) << r.method << " " << r.setting;
+    EXPECT_GE(r.fireflies, 0.0);
+    if (r.image.empty()) continue;
+    const ErrorMetrics e = CompareImages(truth, ReadImage(dir.Path("out/" + r.image)));
+    EXPECT_NEAR(r.truth_rel_l1, e.rel_l1, 1e-5 * e.rel_l1) << r.method << " " << r.setting;
+    EXPECT_NEAR(r.truth_rel_l2, e.rel_l2, 1e-5 * e.rel_l2) << r.method << " " << r.setting;
+    if (r.method == "path") {
+      saw_path = true;
+      EXPECT_EQ(r.spp, std::stoi(r.setting.substr(4)));  // the sweep's spp=N
+    }
+  }
+  EXPECT_TRUE(saw_path);
+  // The path tracer's error against the truth falls with its samples: 1024 spp beats 4 spp.
+  const std::vector<SettingSummary> sums = Summarize(rows);
+  std::vector<double> path_errors;
+  for (const SettingSummary& s : sums)
+    if (s.method == "path") path_errors.push_back(s.truth_rel_l1);
+  ASSERT_GE(path_errors.size(), 5u);
+  EXPECT_LT(path_errors.back(), 0.5 * path_errors.front());
+
+  // A second bench reuses the cached truth; the report has its sections.
+  const std::vector<BenchRow> again = RunBench(o, {}, &info);
+  EXPECT_NE(info.label.find("cached"), std::string::npos);
+  ReportOptions ro;
+  ro.out_dir = o.out_dir;
+  ro.command = "test";
+  WriteBenchReport(again, ro);
+  std::ifstream md(dir.Path("out/report.md"));
+  std::stringstream report;
+  report << md.rdbuf();
+  for (const char* section : {"## Against the truth", "### Time to reach an error against the truth", "### Equal time",
+                              "| 300 | path |", "error_vs_time_truth.png"})
+    EXPECT_NE(report.str().find(section), std::string::npos) << section;
+  EXPECT_TRUE(std::filesystem::exists(dir.Path("out/error_vs_time_truth.png")));
+}
+
+// A truth from a file is area-averaged to the bench's resolution, and the runs use the box
+// filter to match it.
+TEST(Bench, FileTruthIsAreaAveragedAndRunsUseTheBoxFilter) {
+  TempDir dir;
+  BenchOptions o = TinyBench(dir, CopyCornell(dir));
+  o.methods = {"lightcuts"};
+  o.truth = SharedScene("cornell-box").substr(0, SharedScene("cornell-box").size() - 10) + "reference.exr";
+  BenchTruthInfo info;
+  const std::vector<BenchRow> rows = RunBench(o, {}, &info);
+  EXPECT_NE(info.label.find("area-averaged to 16x16"), std::string::npos) << info.label;
+  EXPECT_TRUE(std::isnan(info.noise_rel_l1));
+  const Image truth = ReadImage(dir.Path("out/truth.exr"));
+  EXPECT_NEAR(truth.MeanLuminance(), ReadImage(o.truth).MeanLuminance(), 1e-3 * truth.MeanLuminance());
+  EXPECT_TRUE(testing::SameBits(truth, ResizeImage(ReadImage(o.truth), 16, 16)));
+  // The brute-force reference row was rendered with the box filter.
+  RenderSettings box = Tiny();
+  box.method = "brute";
+  box.filter = "box";
+  EXPECT_TRUE(testing::SameBits(ReadImage(dir.Path("out/" + rows[0].image)), RenderScene(o.scene, box).image));
+  for (const BenchRow& r : rows) EXPECT_TRUE(std::isfinite(r.truth_rel_l1)) << r.method << " " << r.setting;
+}
+
+TEST(Bench, FireflyShareCountsPixelsFarFromTheLocalMean) {
+  Image truth(8, 8, RGB(1.f)), img(8, 8, RGB(1.f));
+  EXPECT_EQ(FireflyShare(truth, img), 0.0);
+  img.at(2, 2) = RGB(3.5f);  // more than 3× the local mean
+  img.at(5, 5) = RGB(0.2f);  // less than a third of it
+  img.at(6, 1) = RGB(2.5f);  // off, but within 3×
+  EXPECT_DOUBLE_EQ(FireflyShare(truth, img), 2.0 / 64.0);
+}
+
+// Results written before the truth columns existed still read (the cost model cache).
+TEST(Bench, CsvWithoutTruthColumnsStillReads) {
+  TempDir dir;
+  const std::string path = dir.Write(
+      "old.csv",
+      "scene,lights,width,height,spp,seed,method,setting,repeat,time_total_s,time_plan_s,time_gather_s,shadow_rays,"
+      "shadow_rays_per_pixel,elements,fraction_evaluated,rel_l2,rel_l1,peak_rss_mb,reference,estimated,phases,image\n"
+      "s.pbrt,300,16,16,1,7,lightcuts,error=0.1,0,1.5,0.1,1.2,100,0.4,100,0.1,0.05,0.04,20,full,0,lights=1,\n");
+  const std::vector<BenchRow> rows = ReadBenchCsv(path);
+  ASSERT_EQ(rows.size(), 1u);
+  EXPECT_EQ(rows[0].setting, "error=0.1");
+  EXPECT_DOUBLE_EQ(rows[0].rel_l2, 0.05);
+  EXPECT_TRUE(std::isnan(rows[0].truth_rel_l1));
 }
 
 TEST(Bench, InterruptedBenchKeepsTheRowsItFinished) {
