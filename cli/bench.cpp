@@ -123,6 +123,12 @@ void RunBenchCommand(const BenchArgs& a) {
   std::filesystem::create_directories(model.parent_path());
   std::filesystem::copy_file(std::filesystem::path(o.out_dir) / "results.csv", model,
                              std::filesystem::copy_options::overwrite_existing);
+  const std::filesystem::path truth = std::filesystem::path(o.out_dir) / "truth.exr";
+  std::error_code ec;
+  std::filesystem::remove(TruthModelPath(o.cache_dir, o.scene), ec);
+  if (std::filesystem::exists(truth))
+    std::filesystem::copy_file(truth, TruthModelPath(o.cache_dir, o.scene),
+                               std::filesystem::copy_options::overwrite_existing);
   std::cerr << "bench: " << rows.size() << " runs -> " << o.out_dir << "/report.md\n";
   if (g_stop.load()) std::exit(130);
 }

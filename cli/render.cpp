@@ -50,7 +50,9 @@ void WriteTextAtomically(const std::string& path, const std::string& text) {
 
 void RunRender(const RenderArgs& a) {
   RenderSettings s = ToRenderSettings(a.render);
-  const TargetErrorPlan target = ApplyTargetError(a.target, a.scene, &s);
+  TargetErrorArgs target_args = a.target;
+  target_args.lights_given = a.render.lights > 0;
+  const TargetErrorPlan target = ApplyTargetError(target_args, a.scene, &s);
   if (a.out.size() < 5 || a.out.substr(a.out.size() - 4) != ".exr")
     throw OptionError("--out must name an .exr file, got \"" + a.out + "\"");
   std::filesystem::path out_path(a.out);

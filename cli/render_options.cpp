@@ -39,7 +39,7 @@ RenderSettings ToRenderSettings(const RenderOptionArgs& a) {
   }
   s.filter = a.filter;
   s.spp = a.spp;
-  s.lights = size_t(a.lights);
+  s.lights = a.lights > 0 ? size_t(a.lights) : 10000;
   s.seed = a.seed;
   s.params = a.params;
   return s;

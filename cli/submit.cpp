@@ -30,7 +30,9 @@ struct SubmitArgs {
 
 void RunSubmit(const SubmitArgs& a) {
   RenderSettings settings = ToRenderSettings(a.render);
-  const TargetErrorPlan target = ApplyTargetError(a.target, a.scene, &settings);
+  TargetErrorArgs target_args = a.target;
+  target_args.lights_given = a.render.lights > 0;
+  const TargetErrorPlan target = ApplyTargetError(target_args, a.scene, &settings);
   if (!a.out.empty() && !a.wait) throw OptionError("--out needs --wait (or use `lightfarm fetch` later)");
   auto client = ConnectToCoordinator(a.server);
   // A scene that does not parse here is still submitted: the coordinator fails the job and

@@ -6,6 +6,10 @@
 #include <filesystem>
 
 #include "common/bench/reference.h"
+#include "common/gather/auto_method.h"
+#include "common/image/image_io.h"
+#include "common/image/metrics.h"
+#include "common/util/options.h"
 #include "common/util/error.h"
 
 namespace lightfarm::cli {
@@ -30,26 +34,84 @@ void AddTargetErrorOptions(CLI::App* cmd, TargetErrorArgs& a) {
                   "With --target-error: the bench cache (default: as `lightfarm bench`)");
 }
 
+namespace {
+
+constexpr double kAutoTruthTarget = 0.05;  // `auto` with a truth model and no target_error
+
+std::string Short(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.3g", v);
+  return buf;
+}
+
+// Applies a choice made against the truth: method (when auto), lights, spp, parameters.
+void ApplyTruthChoice(const TargetChoice& c, const TargetErrorArgs& a, double target,
+                      const std::vector<std::string>& user_params, RenderSettings* s) {
+  if (s->method == kAutoMethod) {
+    s->method = c.method;
+    s->method_rule = "bench against the truth: the least predicted time to rel_l1 <= " + Short(target) + " (" +
+                     c.method + (c.setting.empty() ? "" : " " + c.setting) +
+                     (c.lights ? ", " + std::to_string(c.lights) + " lights" : "") + ", measured " +
+                     Short(c.estimated_error) + ")" +
+                     (c.source.find("no setting reached") != std::string::npos ? "; nothing reached it, the most accurate" : "");
+    // `auto`'s own parameter means nothing to the chosen method.
+    std::vector<std::string> kept;
+    for (const std::string& p : s->params)
+      if (p.rfind("target_error=", 0) != 0) kept.push_back(p);
+    s->params = kept;
+  }
+  if (c.lights > 0 && !a.lights_given) s->lights = c.lights;
+  if (c.spp > 0 && s->spp == 0) s->spp = c.spp;
+  for (const std::string& p : c.params) {
+    const std::string key = p.substr(0, p.find('='));
+    bool user_set = false;
+    for (const std::string& u : user_params) user_set = user_set || u.rfind(key + "=", 0) == 0;
+    if (!user_set) s->params.push_back(p);
+  }
+}
+
+}  // namespace
+
 TargetErrorPlan ApplyTargetError(const TargetErrorArgs& a, const std::string& scene,
                                  RenderSettings* s) {
   TargetErrorPlan plan;
-  if (!(a.target > 0)) return plan;
-  plan.active = true;
   plan.user_params = s->params;
   const std::string cache = a.cache_dir.empty() ? DefaultBenchCacheDir() : a.cache_dir;
   fs::path csv = a.bench_dir.empty() ? CostModelPath(cache, scene) : fs::path(a.bench_dir) / "results.csv";
   if (!a.bench_dir.empty() && !fs::exists(csv))
     throw OptionError("--bench-dir " + a.bench_dir + " has no results.csv");
+  const bool want_target = a.target > 0;
+  if (!want_target && s->method != kAutoMethod) return plan;
   if (fs::exists(csv)) plan.rows = ReadBenchCsv(csv.string());
-  plan.choice = ChooseForTargetError(s->method, a.target, plan.rows, *s);
-  for (const std::string& p : plan.choice.params) {
-    const std::string key = p.substr(0, p.find('='));
-    bool user_set = false;
-    for (const std::string& u : plan.user_params) user_set = user_set || u.rfind(key + "=", 0) == 0;
-    if (!user_set) s->params.push_back(p);
+  if (!want_target) {
+    // `auto` with a bench model against the truth: the same choice as --target-error.
+    if (!HasTruth(plan.rows)) return plan;
+    const double target = OptionMap::Parse(s->params).GetDouble("target_error", kAutoTruthTarget, 1e-6, 1.0);
+    plan.choice = ChooseByTruth(kAutoMethod, target, plan.rows, *s);
+    ApplyTruthChoice(plan.choice, a, target, plan.user_params, s);
+    std::fprintf(stderr, "auto: %s\n", s->method_rule.c_str());
+    return plan;
   }
-  std::fprintf(stderr, "target error %g: %s %s, from %s; predicted time %s\n", a.target,
-               s->method.c_str(), plan.choice.setting.c_str(), plan.choice.source.c_str(),
+  plan.active = true;
+  if (HasTruth(plan.rows)) {
+    plan.choice = ChooseByTruth(s->method, a.target, plan.rows, *s);
+    ApplyTruthChoice(plan.choice, a, a.target, plan.user_params, s);
+  } else {
+    if (s->method == kAutoMethod)
+      throw OptionError("--target-error with --method auto needs the scene's bench results against the truth "
+                        "(run `lightfarm bench` on it) or a method");
+    plan.choice = ChooseForTargetError(s->method, a.target, plan.rows, *s);
+    for (const std::string& p : plan.choice.params) {
+      const std::string key = p.substr(0, p.find('='));
+      bool user_set = false;
+      for (const std::string& u : plan.user_params) user_set = user_set || u.rfind(key + "=", 0) == 0;
+      if (!user_set) s->params.push_back(p);
+    }
+  }
+  std::fprintf(stderr, "target error %g (%s): %s %s%s, from %s; predicted time %s\n", a.target,
+               plan.choice.metric.c_str(), s->method.c_str(), plan.choice.setting.c_str(),
+               plan.choice.lights && s->method != "path" ? (", " + std::to_string(s->lights) + " lights").c_str() : "",
+               plan.choice.source.c_str(),
                plan.choice.predicted_s >= 0
                    ? (std::to_string(plan.choice.predicted_s).substr(0, 6) + " s").c_str()
                    : "unknown (no bench measurement)");
@@ -63,8 +125,29 @@ void ReportTargetError(const TargetErrorPlan& plan, const TargetErrorArgs& a,
   std::string estimated = plan.choice.estimated_error >= 0
                               ? std::to_string(plan.choice.estimated_error).substr(0, 7)
                               : "unknown";
-  std::fprintf(stderr, "target error %g: took %.2f s; estimated rel_l2 %s", a.target, seconds,
-               estimated.c_str());
+  std::fprintf(stderr, "target error %g: took %.2f s; estimated %s %s", a.target, seconds,
+               plan.choice.metric.c_str(), estimated.c_str());
+  // Against the truth the bench measured with, when it has the image's size.
+  if (HasTruth(plan.rows)) {
+    const fs::path truth_file = TruthModelPath(a.cache_dir.empty() ? DefaultBenchCacheDir() : a.cache_dir, scene);
+    if (a.bench_dir.empty() && fs::exists(truth_file)) {
+      const Image truth = ReadImage(truth_file.string());
+      if (truth.SameSize(image)) {
+        const ErrorMetrics m = CompareImages(truth, image);
+        std::fprintf(stderr, "; measured against the truth: rel_l1 %.4f, rel_l2 %.4f\n", m.rel_l1, m.rel_l2);
+        return;
+      }
+    } else if (!a.bench_dir.empty() && fs::exists(fs::path(a.bench_dir) / "truth.exr")) {
+      const Image truth = ReadImage((fs::path(a.bench_dir) / "truth.exr").string());
+      if (truth.SameSize(image)) {
+        const ErrorMetrics m = CompareImages(truth, image);
+        std::fprintf(stderr, "; measured against the truth: rel_l1 %.4f, rel_l2 %.4f\n", m.rel_l1, m.rel_l2);
+        return;
+      }
+    }
+    std::fprintf(stderr, "; no truth of this image's size to measure against\n");
+    return;
+  }
   // A cached brute-force reference for exactly these lights and receivers (full image, or the
   // pixel subset the bench used).
   ReferenceRequest req;

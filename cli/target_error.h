@@ -16,6 +16,7 @@ struct TargetErrorArgs {
   double target = 0;  // 0: off
   std::string bench_dir;
   std::string cache_dir;
+  bool lights_given = false;  // --lights was on the command line: the choice keeps it
 };
 
 void AddTargetErrorOptions(CLI::App* cmd, TargetErrorArgs& args);
@@ -28,7 +29,11 @@ struct TargetErrorPlan {
 };
 
 // Adds the chosen parameters to `settings` (a key the user set with --param is kept) and prints
-// the choice and its predicted time on stderr.
+// the choice and its predicted time on stderr. When the scene's bench results carry errors
+// against the truth, the target is a truth rel_l1 and the choice includes the light count and
+// spp (and the method, for `auto`). `--method auto` without --target-error uses the same model
+// when it exists, at `--param target_error` (default 5% of the truth), and records why in
+// settings->method_rule.
 TargetErrorPlan ApplyTargetError(const TargetErrorArgs& args, const std::string& scene,
                                  RenderSettings* settings);
 

@@ -188,6 +188,8 @@ std::string Coordinator::Submit(const v1::SubmitJobRequest& req) {
   if (s.spp() > options_.max_spp)
     throw FarmError(Code::kResourceExhausted, "spp " + std::to_string(s.spp()) + " exceeds the limit of " +
                                                   std::to_string(options_.max_spp));
+  if (s.method_rule().size() > 4096)
+    throw FarmError(Code::kInvalidArgument, "method_rule is longer than 4096 bytes");
   try {
     CheckGatherMethodOptions(FromProto(s).method, OptionMap::Parse(FromProto(s).params));
   } catch (const OptionError& e) {

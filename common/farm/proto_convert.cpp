@@ -12,6 +12,7 @@ v1::RenderSettings ToProto(const RenderSettings& s) {
   p.set_lights(s.lights);
   p.set_seed(s.seed);
   for (const std::string& kv : s.params) p.add_params(kv);
+  p.set_method_rule(s.method_rule);
   return p;
 }
 
@@ -25,6 +26,7 @@ RenderSettings FromProto(const v1::RenderSettings& p) {
   s.lights = p.lights() == 0 ? 10000 : size_t(p.lights());
   s.seed = p.seed();
   s.params.assign(p.params().begin(), p.params().end());
+  s.method_rule = p.method_rule();
   return s;
 }
 

@@ -129,6 +129,7 @@ Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, Ph
     CheckGatherMethodOptions(settings.method, params);
   } else {
     plan.method = CreateGatherMethod(settings.method, params);
+    plan.method_rule = settings.method_rule;
     read_film_params();
     params.RejectUnused();
   }

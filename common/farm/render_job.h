@@ -28,6 +28,9 @@ struct RenderSettings {
   size_t lights = 10000;
   uint64_t seed = 0;
   std::vector<std::string> params;  // KEY=VALUE (--param)
+  // Why the client chose `method` when it resolved `auto` itself (a bench model against the
+  // truth): reported as the stats' method_rule.
+  std::string method_rule;
 };
 
 // Everything a gather needs, built once per job (deterministic in the job seed).
