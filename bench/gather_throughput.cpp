@@ -14,6 +14,7 @@
 #include <numeric>
 
 #include "common/farm/render_job.h"
+#include "common/integrator/path_tracer.h"
 #include "common/util/rng.h"
 
 namespace lightfarm {
@@ -106,6 +107,73 @@ void ReplayOcclusion(benchmark::State& state, const std::vector<RTCRay>& recorde
 void BM_RawOcclusionBruteRays(benchmark::State& state) { ReplayOcclusion(state, Get().brute_rays); }
 void BM_RawOcclusionColumnRays(benchmark::State& state) { ReplayOcclusion(state, Get().column_rays); }
 
+// The path tracer (`path`) on the same scene: 2048 camera paths of the fixture's pixels, all
+// their rays (closest hits and shadow rays) against the same rays replayed through Embree alone
+// (Scene::Intersect, the thin wrapper the tracer calls, and rtcOccluded1M one ray at a time, as
+// the tracer issues them). The difference is sampling, shading and the medium/emitter logic.
+struct PathFixture {
+  std::unique_ptr<PathTracer> tracer;
+  std::vector<Ray> camera;
+  std::vector<Ray> closest;
+  std::vector<RTCRay> shadow;
+};
+
+PathFixture& GetPath() {
+  static PathFixture* f = [] {
+    auto* fx = new PathFixture;
+    const Scene& scene = *Get().plan.scene;
+    PathTracerOptions opt;
+    opt.max_depth = scene.hints().max_depth;
+    fx->tracer = std::make_unique<PathTracer>(scene, opt);
+    Rng rng(HashSeed({2, 0xBE7C6}));
+    for (int i = 0; i < 2048; ++i)
+      fx->camera.push_back(scene.camera().GenerateRay({64 * rng.Uniform(), 64 * rng.Uniform()}, {0.5f, 0.5f}));
+    fx->tracer->RecordRays(&fx->closest, &fx->shadow);
+    PathCounters c;
+    for (size_t i = 0; i < fx->camera.size(); ++i) {
+      Rng path_rng(HashSeed({3, i}));
+      fx->tracer->Li(fx->camera[i], path_rng, &c);
+    }
+    fx->tracer->RecordRays(nullptr, nullptr);
+    return fx;
+  }();
+  return *f;
+}
+
+void BM_GatherPathTrace(benchmark::State& state) {
+  PathFixture& f = GetPath();
+  PathCounters c;
+  double rays = 0;
+  for (auto _ : state) {
+    for (size_t i = 0; i < f.camera.size(); ++i) {
+      Rng rng(HashSeed({3, i}));  // the recorded paths exactly
+      benchmark::DoNotOptimize(f.tracer->Li(f.camera[i], rng, &c));
+    }
+    rays += double(f.closest.size() + f.shadow.size());
+  }
+  state.counters["rays/s"] = benchmark::Counter(rays, benchmark::Counter::kIsRate);
+}
+
+void BM_RawPathRays(benchmark::State& state) {
+  PathFixture& f = GetPath();
+  const Scene& scene = *Get().plan.scene;
+  RTCRay one;
+  double rays = 0;
+  for (auto _ : state) {
+    SurfaceHit hit;
+    for (const Ray& r : f.closest) benchmark::DoNotOptimize(scene.Intersect(r, &hit));
+    for (const RTCRay& r : f.shadow) {
+      one = r;
+      scene.Occluded(&one, 1);
+    }
+    benchmark::DoNotOptimize(one.tfar);
+    rays += double(f.closest.size() + f.shadow.size());
+  }
+  state.counters["rays/s"] = benchmark::Counter(rays, benchmark::Counter::kIsRate);
+}
+
+BENCHMARK(BM_GatherPathTrace)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_RawPathRays)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_GatherBruteRowSum)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_RawOcclusionBruteRays)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_GatherColumn)->Unit(benchmark::kMillisecond);
@@ -150,8 +218,12 @@ int main(int argc, char** argv) {
   std::printf("recorded rays: brute %zu (%zu rows x %zu lights), column %zu (%zu columns x %zu rows)\n",
               f.brute_rays.size(), f.brute_rows.size(), f.plan.matrix->cols(), f.column_rays.size(),
               f.columns.size(), f.column_rows.size());
+  const PathFixture& pf = GetPath();
+  std::printf("recorded path rays: %zu closest-hit and %zu shadow rays of %zu camera paths\n", pf.closest.size(),
+              pf.shadow.size(), pf.camera.size());
   for (auto [gather, raw] : {std::pair{"BM_GatherBruteRowSum", "BM_RawOcclusionBruteRays"},
-                             std::pair{"BM_GatherColumn", "BM_RawOcclusionColumnRays"}}) {
+                             std::pair{"BM_GatherColumn", "BM_RawOcclusionColumnRays"},
+                             std::pair{"BM_GatherPathTrace", "BM_RawPathRays"}}) {
     auto g = reporter.rates.find(gather), r = reporter.rates.find(raw);
     if (g == reporter.rates.end() || r == reporter.rates.end()) continue;
     const std::vector<double>& gr = g->second;

@@ -57,6 +57,7 @@ RGB PathTracer::ShadowRay(Vec3 o, const LightSample& ls, int medium, Rng& rng,
   ray.mask = kMaskOpaque;
   ray.id = 0;
   ray.flags = 0;
+  if (record_shadow_) record_shadow_->push_back(ray);
   scene_.Occluded(&ray, 1);
   ++counters->shadow_rays;
   if (!(ray.tfar >= 0.f)) return RGB(0.f);  // Embree sets tfar = -inf when occluded
@@ -113,6 +114,7 @@ RGB PathTracer::Li(Ray ray, Rng& rng, PathCounters* counters) const {
   const bool use_lights = options_.strategy != PathStrategy::kBSDF && !lights_.empty();
   for (;;) {
     SurfaceHit hit;
+    if (record_closest_) record_closest_->push_back(ray);
     const bool found = scene_.Intersect(ray, &hit);
     bool scattered = false;
     if (medium >= 0) {

@@ -17,7 +17,10 @@
 //   of the refractions so far (pbrt-v4's etaScale), so glass does not end paths early.
 #pragma once
 
+#include <embree3/rtcore.h>
+
 #include <cstdint>
+#include <vector>
 
 #include "common/lights/emitters.h"
 #include "common/scene/scene.h"
@@ -56,6 +59,14 @@ class PathTracer {
   // random number from rng, so a path is a deterministic function of its generator.
   RGB Li(Ray ray, Rng& rng, PathCounters* counters) const;
 
+  // Appends every ray traced from now on (closest-hit rays, shadow rays as handed to Embree) to
+  // these vectors (nullptr: stop): the micro-benchmark replays them through Embree alone.
+  // Single-threaded use only.
+  void RecordRays(std::vector<Ray>* closest, std::vector<RTCRay>* shadow) {
+    record_closest_ = closest;
+    record_shadow_ = shadow;
+  }
+
  private:
   // Next-event estimation from a surface vertex (local BSDF frame) or a medium point.
   RGB LightAtSurface(const SurfaceHit& hit, const Material& m, const Frame& frame, Vec3 wo_local,
@@ -69,6 +80,8 @@ class PathTracer {
   const Scene& scene_;
   PathTracerOptions options_;
   EmitterSampler lights_;
+  std::vector<Ray>* record_closest_ = nullptr;
+  std::vector<RTCRay>* record_shadow_ = nullptr;
 };
 
 }  // namespace lightfarm

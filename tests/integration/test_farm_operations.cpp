@@ -162,9 +162,10 @@ TEST(FarmOperations, SubmitWithTargetErrorUsesTheBenchAndReportsTheMeasuredError
   TempDir dir;
   const std::string scene = SourcePath("scenes/cornell-box/scene.pbrt");
   const std::vector<std::string> job = {"--resolution", "16x16", "--lights", "500", "--seed", "3"};
+  // Without a truth: the target is a rel_l2 against same-lights brute force.
   std::vector<std::string> bench = {"bench", scene, "--out-dir", dir.Path("bench"), "--methods", "mrcs",
                                     "--repeats", "1", "--cache-dir", dir.Path("cache"), "--no-plots",
-                                    "--lights", "500", "--resolution", "16x16", "--seed", "3"};
+                                    "--lights", "500", "--resolution", "16x16", "--seed", "3", "--truth", "none"};
   CliResult b = RunCli(dir, bench, 300);
   ASSERT_EQ(b.exit_code, 0) << b.err;
   auto with = [&](std::vector<std::string> head) {
@@ -184,12 +185,39 @@ TEST(FarmOperations, SubmitWithTargetErrorUsesTheBenchAndReportsTheMeasuredError
                                      "--out", dir.Path("farm.exr")}));
   ASSERT_EQ(farm.exit_code, 0) << farm.err;
   for (const CliResult* r : {&direct, &farm}) {
-    EXPECT_NE(r->err.find("target error 0.05: mrcs"), std::string::npos) << r->err;
+    EXPECT_NE(r->err.find("target error 0.05 (rel_l2 against same-lights brute force): mrcs"), std::string::npos)
+        << r->err;
     EXPECT_NE(r->err.find("predicted time"), std::string::npos) << r->err;
     EXPECT_EQ(r->err.find("predicted time unknown"), std::string::npos) << r->err;
     EXPECT_NE(r->err.find("measured rel_l2"), std::string::npos) << r->err;
   }
   EXPECT_TRUE(SameBits(ReadImage(dir.Path("farm.exr")), ReadImage(dir.Path("direct.exr"))));
+
+  // Against a path-traced truth (lights and spp are part of the choice): the target is a truth
+  // rel_l1, the method for `auto` is chosen too, and the error is measured against the truth.
+  std::vector<std::string> truth_bench = {"bench", scene, "--out-dir", dir.Path("tbench"), "--methods", "lightcuts,path",
+                                          "--repeats", "1", "--cache-dir", dir.Path("cache"), "--no-plots",
+                                          "--lights", "300,1000", "--resolution", "16x16", "--seed", "3",
+                                          "--truth", "path", "--truth-noise", "0.03"};
+  CliResult tb = RunCli(dir, truth_bench, 300);
+  ASSERT_EQ(tb.exit_code, 0) << tb.err;
+  CliResult pick = RunCli(dir, {"render", scene, "--resolution", "16x16", "--seed", "3", "--quiet", "--target-error",
+                                "0.5", "--bench-dir", dir.Path("tbench"), "--out", dir.Path("t.exr"), "--stats",
+                                dir.Path("t.json")});
+  ASSERT_EQ(pick.exit_code, 0) << pick.err;
+  EXPECT_NE(pick.err.find("target error 0.5 (rel_l1 against the truth): "), std::string::npos) << pick.err;
+  EXPECT_NE(pick.err.find("measured against the truth: rel_l1"), std::string::npos) << pick.err;
+  const nlohmann::json stats = nlohmann::json::parse(Slurp(dir.Path("t.json")));
+  EXPECT_EQ(stats["method_requested"], stats["method"]);  // resolved by the client, before the plan
+  EXPECT_NE(stats["method_rule"].get<std::string>().find("bench against the truth"), std::string::npos);
+  // `auto` without --target-error uses the same model (default 5% of the truth, or the
+  // most accurate run when nothing reached it), from the cost model the bench cached.
+  CliResult autop = RunCli(dir, {"render", scene, "--resolution", "16x16", "--seed", "3", "--quiet", "--bench-cache",
+                                 dir.Path("cache"), "--out", dir.Path("a.exr"), "--stats", dir.Path("a.json")});
+  ASSERT_EQ(autop.exit_code, 0) << autop.err;
+  EXPECT_NE(autop.err.find("auto: bench against the truth"), std::string::npos) << autop.err;
+  const nlohmann::json astats = nlohmann::json::parse(Slurp(dir.Path("a.json")));
+  EXPECT_NE(astats["method_rule"].get<std::string>().find("bench against the truth"), std::string::npos);
 }
 
 }  // namespace

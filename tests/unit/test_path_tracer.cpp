@@ -6,7 +6,9 @@
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
 
+#include <algorithm>
 #include <cmath>
+#include <vector>
 #include <string>
 
 #include "common/farm/render_job.h"
@@ -119,6 +121,54 @@ TEST(PathTracer, PlaneUnderASphereLightConvergesWithEveryStrategy) {
     got /= counted;
     // Over the ~900 pixels × 1024 samples: BSDF sampling alone finds the small sphere rarely
     // (a ~6% chance per sample), within 2%; the light-sampled estimators within 1% (~3σ).
+    EXPECT_NEAR(got, expected, (strategy == "bsdf" ? 0.02 : 0.01) * expected) << strategy;
+  }
+}
+
+// A square emitter parallel to the plane: Lambert's polygon formula gives the irradiance exactly,
+// E = L/2 · |Σ_i Θ_i n·(u_i × u_{i+1})/|u_i × u_{i+1}||, Θ_i the angle between consecutive
+// corners seen from the point; the plane reflects ρ/π · E.
+TEST(PathTracer, PlaneUnderAQuadLightConvergesWithEveryStrategy) {
+  TempDir dir;
+  const std::string light =
+      "AttributeBegin\nAreaLightSource \"diffuse\" \"rgb L\" [3 3 3] \"bool twosided\" true\n"
+      "Material \"diffuse\" \"rgb reflectance\" [0 0 0]\n"
+      "Shape \"trianglemesh\" \"point3 P\" [-0.3 -0.3 1  0.3 -0.3 1  0.3 0.3 1  -0.3 0.3 1] \"integer indices\" [0 1 2 0 2 3]\n"
+      "AttributeEnd\n";
+  auto radiance = [](double x, double y) {
+    const double corners[4][2] = {{-0.3, -0.3}, {0.3, -0.3}, {0.3, 0.3}, {-0.3, 0.3}};
+    double sum = 0;
+    for (int i = 0; i < 4; ++i) {
+      const double* a = corners[i];
+      const double* b = corners[(i + 1) % 4];
+      double u[3] = {a[0] - x, a[1] - y, 1}, v[3] = {b[0] - x, b[1] - y, 1};
+      const double lu = std::sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
+      const double lv = std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+      const double cz = u[0] * v[1] - u[1] * v[0];  // n = +z: only the cross product's z matters
+      const double cx = u[1] * v[2] - u[2] * v[1], cy = u[2] * v[0] - u[0] * v[2];
+      const double theta = std::acos(std::clamp((u[0] * v[0] + u[1] * v[1] + u[2] * v[2]) / (lu * lv), -1.0, 1.0));
+      sum += theta * cz / std::sqrt(cx * cx + cy * cy + cz * cz);
+    }
+    return 0.5 / M_PI * (3.0 / 2.0 * std::abs(sum));
+  };
+  double expected = 0;
+  int counted = 0;
+  std::vector<double> truth(32 * 32, -1);
+  for (int py = 0; py < 32; ++py)
+    for (int px = 0; px < 32; ++px) {
+      const double cx = -1 + (px + 0.5) / 16, cy = 1 - (py + 0.5) / 16;
+      if (std::abs(cx) < 0.36 && std::abs(cy) < 0.36) continue;  // the camera sees the emitter there
+      truth[size_t(py * 32 + px)] = PixelMean(px, py, 32, radiance);
+      expected += truth[size_t(py * 32 + px)];
+      ++counted;
+    }
+  expected /= counted;
+  for (const std::string strategy : {"mis", "light", "bsdf"}) {
+    const RenderOutput out = RenderPath(dir, PlaneUnder(light), strategy, 512);
+    double got = 0;
+    for (size_t i = 0; i < truth.size(); ++i)
+      if (truth[i] >= 0) got += double(out.image.pixels[i].g);
+    got /= counted;
     EXPECT_NEAR(got, expected, (strategy == "bsdf" ? 0.02 : 0.01) * expected) << strategy;
   }
 }
