@@ -64,14 +64,6 @@ double Seconds(std::chrono::steady_clock::duration d) {
   return std::chrono::duration<double>(d).count();
 }
 
-// A manifest path must stay inside the scene directory once materialized.
-bool IsSafeRelativePath(const std::string& p) {
-  if (p.empty() || p.size() > 4096 || p[0] == '/' || p.find('\0') != std::string::npos) return false;
-  for (const auto& part : fs::path(p))
-    if (part == ".." || part == "." || part.empty()) return false;
-  return true;
-}
-
 std::string ReplaceAll(std::string s, const std::string& from, const std::string& to) {
   if (from.empty()) return s;
   for (size_t pos = 0; (pos = s.find(from, pos)) != std::string::npos; pos += to.size())
@@ -161,7 +153,7 @@ std::string Coordinator::Submit(const v1::SubmitJobRequest& req) {
   bool has_root = false;
   std::set<std::string> paths;
   for (const v1::SceneFile& f : m.files()) {
-    if (!IsSafeRelativePath(f.path()))
+    if (!IsSafeScenePath(f.path()))
       throw FarmError(Code::kInvalidArgument, "scene file path \"" + f.path().substr(0, 200) +
                                                   "\" must be relative and must not contain \"..\"");
     if (!paths.insert(f.path()).second)
@@ -501,8 +493,12 @@ bool Coordinator::Complete(const std::string& worker_id, const std::string& leas
   try {
     TaskOutput out = DeserializeTaskOutput(bytes);
     if (final_stage) {
-      if (!plan) throw std::logic_error("a running job without a plan");
-      problem = CheckFinalOutput(*plan, DeserializeTask(spec), out);
+      const SubMatrixTask task = DeserializeTask(spec);
+      if (plan)
+        problem = CheckFinalOutput(*plan, task, out);
+      else if (out.row_sums.size() != task.rows.size())  // no plan to say more (never expected)
+        problem = "result has " + std::to_string(out.row_sums.size()) + " rows, the task has " +
+                  std::to_string(task.rows.size());
     }
   } catch (const SerializeError& e) {
     problem = std::string("malformed result: ") + e.what();

@@ -17,6 +17,7 @@
 #include <thread>
 #include <vector>
 
+#include "common/farm/farm_protocol.h"
 #include "common/farm/render_job.h"
 #include "common/farm/serialize.h"
 #include "coordinator/blob_store.h"
@@ -27,8 +28,6 @@
 
 namespace lightfarm {
 
-// Workers and coordinator must speak the same worker protocol and task encodings.
-inline constexpr uint32_t kWorkerProtocolVersion = 2;  // 2: film methods (path)
 
 struct CoordinatorOptions {
   std::string state_dir;

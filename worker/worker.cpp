@@ -247,8 +247,7 @@ std::shared_ptr<Worker::JobRuntime> Worker::Runtime(const v1::JobContext& job) {
   } cleanup{dir};
   for (const v1::SceneFile& f : job.scene().files()) {
     const fs::path rel(f.path());
-    if (rel.is_absolute() || f.path().find("..") != std::string::npos)
-      throw std::runtime_error("unsafe scene path " + f.path());
+    if (!IsSafeScenePath(f.path())) throw std::runtime_error("unsafe scene path " + f.path());
     fs::create_directories((dir / rel).parent_path());
     fs::copy_file(FetchBlob(f.sha256()), dir / rel);
   }

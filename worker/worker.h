@@ -7,6 +7,7 @@
 #include <grpcpp/grpcpp.h>
 
 #include <atomic>
+#include <condition_variable>
 #include <cstdint>
 #include <list>
 #include <map>
@@ -16,7 +17,7 @@
 #include <string>
 
 #include "common/farm/render_job.h"
-#include "coordinator/coordinator.h"
+#include "common/farm/farm_protocol.h"
 #include "lightfarm/v1/worker.grpc.pb.h"
 
 namespace lightfarm {

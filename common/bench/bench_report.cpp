@@ -481,32 +481,36 @@ void WriteBenchReport(const std::vector<BenchRow>& rows, const ReportOptions& o)
       }
     }
     md << "\n![error against the truth vs time](error_vs_time_truth.png)\n";
-    // Heatmaps against the truth at the middle budget, for the largest light count.
-    if (o.images && budgets.size() == 3 && !truth.image.empty()) {
+    // Images and heatmaps against the truth side by side, at each budget.
+    if (o.images && !truth.image.empty()) {
       const fs::path dir(o.out_dir);
       fs::create_directories(dir / "heatmaps");
       const Image timg = ReadImage((dir / truth.image).string());
       WritePNG((dir / "heatmaps/truth.png").string(), timg);
-      std::vector<std::pair<std::string, std::string>> top = {{"truth", (dir / "heatmaps/truth.png").string()}};
-      std::vector<std::string> bottom = {""};
-      md << "\n### At " << Seconds(budgets[1]) << ", against the truth\n\nHeatmap: |truth − img| luminance over "
-            "the truth's mean, black = 0, pale yellow ≥ 20%.\n\n"
-         << "| method | lights | setting | truth rel_l1 | image | heatmap |\n|---|---|---|---|---|---|\n";
-      for (const std::string& m : methods) {
-        const SettingSummary* s = BestWithin(sums, m, 0, budgets[1]);
-        if (!s || s->image.empty()) continue;
-        const Image img = ReadImage((dir / s->image).string());
-        const std::string png = "heatmaps/" + m + "_truth.png", heat = "heatmaps/" + m + "_truth_error.png";
-        WritePNG((dir / png).string(), img);
-        WritePNG((dir / heat).string(), ErrorHeatmap(timg, img));
-        top.push_back({m + " " + s->setting, (dir / png).string()});
-        bottom.push_back((dir / heat).string());
-        md << "| " << m << " | " << (m == "path" ? std::string("—") : std::to_string(s->lights)) << " | `"
-           << s->setting << "` | " << Fmt("%.4f", s->truth_rel_l1) << " | ![](" << png
-           << ") | ![](" << heat << ") |\n";
+      for (size_t k = 0; k < budgets.size(); ++k) {
+        std::vector<std::pair<std::string, std::string>> top = {{"truth", (dir / "heatmaps/truth.png").string()}};
+        std::vector<std::string> bottom = {""};
+        md << "\n#### At " << Seconds(budgets[k]) << ", against the truth\n\nHeatmap: |truth − img| luminance "
+              "over the truth's mean, black = 0, pale yellow ≥ 20%.\n\n"
+           << "| method | lights | setting | truth rel_l1 | image | heatmap |\n|---|---|---|---|---|---|\n";
+        for (const std::string& m : methods) {
+          const SettingSummary* s = BestWithin(sums, m, 0, budgets[k]);
+          if (!s || s->image.empty()) continue;
+          const Image img = ReadImage((dir / s->image).string());
+          const std::string tag = m + "_b" + std::to_string(k + 1);
+          const std::string png = "heatmaps/" + tag + "_truth.png", heat = "heatmaps/" + tag + "_truth_error.png";
+          WritePNG((dir / png).string(), img);
+          WritePNG((dir / heat).string(), ErrorHeatmap(timg, img));
+          top.push_back({m + " " + s->setting, (dir / png).string()});
+          bottom.push_back((dir / heat).string());
+          md << "| " << m << " | " << (m == "path" ? std::string("—") : std::to_string(s->lights)) << " | `"
+             << s->setting << "` | " << Fmt("%.4f", s->truth_rel_l1) << " | ![](" << png << ") | ![](" << heat
+             << ") |\n";
+        }
+        const std::string sheet = "contact_sheet_truth_" + std::to_string(k + 1) + ".png";
+        WriteContactSheet(top, bottom, (dir / sheet).string());
+        md << "\n![contact sheet against the truth](" << sheet << ")\n";
       }
-      WriteContactSheet(top, bottom, (dir / "contact_sheet_truth.png").string());
-      md << "\n![contact sheet against the truth](contact_sheet_truth.png)\n";
     }
   }
 

@@ -1,0 +1,20 @@
+// What the coordinator and its workers must agree on, whichever side of the wire they are: the
+// worker protocol's version and the rule a scene file's path follows. Both sides include this
+// (neither includes the other), so a job the coordinator accepts is one every worker can run.
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+namespace lightfarm {
+
+// Workers and coordinator must speak the same worker protocol and task encodings
+// (serialize.h's kSerializeVersion moves with it). 2: film methods (path).
+inline constexpr uint32_t kWorkerProtocolVersion = 2;
+
+// A scene file's path as a manifest names it: relative, at most 4096 bytes, no NUL, and no
+// component that is empty, "." or ".." (a name that merely contains two dots, "tex/a..b.png",
+// is fine), so that materialized under any directory it stays inside it.
+bool IsSafeScenePath(const std::string& path);
+
+}  // namespace lightfarm
