@@ -269,9 +269,7 @@ std::shared_ptr<Worker::JobRuntime> Worker::Runtime(const v1::JobContext& job) {
     rt->tree = std::make_unique<LightTree>(LightTree::Build(rt->lights, settings.seed));
   MatrixOptions mopt;
   mopt.clamp = job.clamp();
-  // Samples per eye-segment element (media); the plan reads and validates the same key.
-  mopt.segment_samples =
-      int(OptionMap::Parse(settings.params).GetInt("segment_samples", 4, 1, 64));
+  ReadMatrixParams(params, settings.seed, &mopt);  // as the plan does
   rt->matrix = std::make_unique<LightingMatrix>(*rt->scene, rt->receivers, rt->lights, mopt);
   runtime_ = rt;
   return rt;
@@ -330,7 +328,7 @@ bool Worker::RunOneTask() {
   tbb::task_group group;
   auto future = std::async(std::launch::async, [&] {
     TaskOutput out;
-    group.run_and_wait([&] { out = rt->method->RunTask(rt->context(), task, artifact); });
+    group.run_and_wait([&] { out = RunGatherTask(*rt->method, rt->context(), task, artifact); });
     return out;
   });
   const auto beat = std::chrono::milliseconds(std::max<uint32_t>(20, lease_timeout_ms_ / 4));

@@ -93,7 +93,7 @@ Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, Ph
   // Media rows and columns (eye segments, medium VPLs): h split points per eye ray (Huo 2016:
   // 16) and samples per segment element.
   const int segments_per_ray = int(params.GetInt("segments_per_ray", 16, 0, 1024));
-  plan.matrix_options.segment_samples = int(params.GetInt("segment_samples", 4, 1, 64));
+  ReadMatrixParams(params, settings.seed, &plan.matrix_options);
   // Eye-segment slices (Huo 2016, Sec. 4; segment_slicing.h): K = 0.008 × eye rays, clamped to
   // an average of [5/8, 5/4] × segment_rows_per_slice segments per slice (500–1000 for the
   // default 800, the range the paper reports); segment_refine=1 splits segments across slice
@@ -244,7 +244,7 @@ GatherOutcome RunStagesLocally(const Plan& plan, const ProgressFn& progress, Pha
     std::vector<SubMatrixTask> tasks = method.PlanStage(stage, ctx, plan.tasks, artifact);
     std::vector<TaskOutput> outputs(tasks.size());
     for (size_t t = 0; t < tasks.size(); ++t) {
-      outputs[t] = method.RunTask(ctx, tasks[t], artifact);
+      outputs[t] = RunGatherTask(method, ctx, tasks[t], artifact);
       outcome.counters.Add(outputs[t].counters);
       for (const auto& [k, v] : outputs[t].stats) outcome.method_stats[k] += v;
       if (progress) progress(method.stage_name(stage), t + 1, tasks.size());
@@ -396,10 +396,17 @@ nlohmann::json MakeStats(const Plan& plan, const RenderSettings& settings,
   double total_lum = 0;
   if (!plan.method->renders_film())
     for (const RGBAccum& r : outcome.row_sums) total_lum += 0.2126 * r.r + 0.7152 * r.g + 0.0722 * r.b;
-  const double denom = total_lum + counters.clamp_lost;
+  // The row sums include the compensation; the unclamped total replaces it by what was lost.
+  const double denom = total_lum - counters.clamp_compensated + counters.clamp_lost;
   s["clamp"] = {{"relative", plan.clamp},
                 {"distance", plan.matrix->clamp_distance()},
-                {"energy_lost_fraction", denom > 0 ? counters.clamp_lost / denom : 0.0}};
+                {"energy_lost_fraction", denom > 0 ? counters.clamp_lost / denom : 0.0},
+                {"compensation_samples", plan.matrix_options.compensation_samples},
+                {"compensated_fraction", denom > 0 ? counters.clamp_compensated / denom : 0.0},
+                {"energy_lost_after_compensation",
+                 denom > 0 ? (counters.clamp_lost - (plan.matrix->compensates() ? counters.clamp_compensated : 0.0)) / denom
+                           : 0.0},
+                {"compensation_paths", counters.compensation_paths}};
   s["film"] = {{"nan_samples", nan_samples}};
   s["method_stats"] = nlohmann::json::object();
   for (const auto& [k, v] : outcome.method_stats) s["method_stats"][k] = v;

@@ -1,5 +1,7 @@
 #include "common/gather/gather.h"
 
+#include <tbb/parallel_for.h>
+
 namespace lightfarm {
 
 std::vector<SubMatrixTask> GatherMethod::PlanStage(int stage, const GatherContext&,
@@ -12,6 +14,22 @@ std::vector<SubMatrixTask> GatherMethod::PlanStage(int stage, const GatherContex
 
 StageArtifact GatherMethod::Combine(int, const GatherContext&, const std::vector<TaskOutput>&) const {
   return {};
+}
+
+TaskOutput RunGatherTask(const GatherMethod& method, const GatherContext& ctx, const SubMatrixTask& task,
+                         const StageArtifact& previous) {
+  TaskOutput out = method.RunTask(ctx, task, previous);
+  if (method.renders_film() || !ctx.matrix.compensates() || int(task.stage) + 1 != method.stage_count()) return out;
+  if (out.row_sums.size() != task.rows.size()) return out;  // the caller reports the mismatch
+  std::vector<MatrixCounters> counters(task.rows.size());
+  std::vector<RGBAccum> extra(task.rows.size());
+  tbb::parallel_for(size_t(0), task.rows.size(),
+                    [&](size_t i) { extra[i] = ctx.matrix.ClampCompensation(task.rows[i], &counters[i]); });
+  for (size_t i = 0; i < task.rows.size(); ++i) {
+    out.row_sums[i].Add(extra[i]);
+    out.counters.Add(counters[i]);
+  }
+  return out;
 }
 
 }  // namespace lightfarm

@@ -82,6 +82,12 @@ class GatherMethod {
                                 const std::vector<TaskOutput>& outputs) const;
 };
 
+// Runs one task as every driver must (the embedded stage loop and the workers): the method's
+// RunTask, then, on the final stage of a matrix method whose matrix compensates the clamp, each
+// row's ClampCompensation added to its sum (rows in parallel, summed in row order).
+TaskOutput RunGatherTask(const GatherMethod& method, const GatherContext& ctx, const SubMatrixTask& task,
+                         const StageArtifact& previous);
+
 // Creates a method by name, reading its parameters from `params` (marking them used).
 // Throws OptionError for an unknown method or an invalid parameter value.
 std::unique_ptr<GatherMethod> CreateGatherMethod(const std::string& name, const OptionMap& params);

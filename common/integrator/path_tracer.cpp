@@ -101,11 +101,14 @@ RGB PathTracer::LightInMedium(Vec3 p, Vec3 d_in, int medium, Rng& rng, PathCount
 }
 
 RGB PathTracer::Li(Ray ray, Rng& rng, PathCounters* counters) const {
+  return Li(ray, scene_.camera_medium(), options_.max_depth, rng, counters);
+}
+
+RGB PathTracer::Li(Ray ray, int medium, int max_depth, Rng& rng, PathCounters* counters) const {
   ++counters->paths;
   RGB L(0.f), beta(1.f);
   float eta_scale = 1.f;
   int depth = 0, passthrough = 0;
-  int medium = scene_.camera_medium();
   // The last scattering vertex and the density its direction was sampled with, for the MIS
   // weight of an emitter the ray finds; `specular`: that density was a delta (or the camera's).
   bool specular = true;
@@ -123,7 +126,7 @@ RGB PathTracer::Li(Ray ray, Rng& rng, PathCounters* counters) const {
       beta *= fp.weight;
       if (beta.IsBlack() || !beta.IsFinite()) break;
       if (fp.scattered) {
-        if (depth++ >= options_.max_depth) break;
+        if (depth++ >= max_depth) break;
         ++counters->vertices;
         passthrough = 0;
         const Vec3 p = ray.o + ray.d * fp.t;
@@ -169,7 +172,7 @@ RGB PathTracer::Li(Ray ray, Rng& rng, PathCounters* counters) const {
         ray.tmax = kInfinity;
         continue;
       }
-      if (depth++ >= options_.max_depth) break;
+      if (depth++ >= max_depth) break;
       ++counters->vertices;
       passthrough = 0;
       const Frame frame(hit.ns);

@@ -58,6 +58,9 @@ class PathTracer {
   // Radiance arriving at the camera along `ray` (starting in the camera's medium). Draws every
   // random number from rng, so a path is a deterministic function of its generator.
   RGB Li(Ray ray, Rng& rng, PathCounters* counters) const;
+  // Radiance arriving at ray.o along -ray.d, for a ray that starts in `medium` and may scatter at
+  // most `max_depth` times (the clamp compensation traces from a receiver with its remaining depth).
+  RGB Li(Ray ray, int medium, int max_depth, Rng& rng, PathCounters* counters) const;
 
   // Appends every ray traced from now on (closest-hit rays, shadow rays as handed to Embree) to
   // these vectors (nullptr: stop): the micro-benchmark replays them through Embree alone.

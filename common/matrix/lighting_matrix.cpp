@@ -1,5 +1,7 @@
 #include "common/matrix/lighting_matrix.h"
 
+#include "common/util/options.h"
+
 #include <embree3/rtcore.h>
 
 #include <array>
@@ -169,6 +171,15 @@ RGB LightIntensityTowards(const VirtualLight& L, Vec3 w, const std::vector<Mater
   return RGB(0.f);
 }
 
+LightingMatrix::~LightingMatrix() = default;
+
+void ReadMatrixParams(const OptionMap& params, uint64_t seed, MatrixOptions* options) {
+  options->segment_samples = int(params.GetInt("segment_samples", 4, 1, 64));
+  // Path-traced compensation of the clamp, samples per surface receiver (clamp_compensation.cpp).
+  options->compensation_samples = int(params.GetInt("clamp_compensation", 4, 0, 64));
+  options->compensation_seed = seed;
+}
+
 LightingMatrix::LightingMatrix(const Scene& scene, const ReceiverSet& receivers,
                                const LightSet& lights, const MatrixOptions& options)
     : scene_(scene), receivers_(receivers), lights_(lights) {
@@ -176,6 +187,13 @@ LightingMatrix::LightingMatrix(const Scene& scene, const ReceiverSet& receivers,
   clamp_distance2_ = clamp_distance_ * clamp_distance_;
   segment_samples_ = options.segment_samples;
   max_depth_ = scene.hints().max_depth;
+  compensation_samples_ = options.compensation_samples;
+  compensation_seed_ = options.compensation_seed;
+  if (compensates()) {
+    PathTracerOptions pt;
+    pt.max_depth = scene.hints().max_depth;
+    compensation_tracer_ = std::make_unique<PathTracer>(scene, pt);
+  }
   const int max_depth = scene.hints().max_depth;
   rows_.resize(receivers.points.size());
   for (size_t i = 0; i < rows_.size(); ++i) {

@@ -5,10 +5,12 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <span>
 #include <vector>
 
 #include "common/lights/virtual_light.h"
+#include "common/integrator/path_tracer.h"
 #include "common/receivers/receivers.h"
 #include "common/scene/scene.h"
 
@@ -24,7 +26,16 @@ struct MatrixOptions {
   // The Lambertian fast path of surface elements (see LightingMatrix::DiffuseElement). It gives
   // the same bits as the general path; false forces the general path (tests compare the two).
   bool diffuse_fast_path = true;
+  // Path-traced compensation of the clamp (clamp_compensation.cpp): BSDF samples per surface
+  // receiver that estimate the light the clamp removed; 0 turns it off (the --param default is 4).
+  int compensation_samples = 0;
+  uint64_t compensation_seed = 0;  // the job seed: the compensation is part of the light set
 };
+
+class OptionMap;
+// Reads the matrix's --param keys (segment_samples, clamp_compensation) into `options`: the plan
+// and every worker read them through this one function.
+void ReadMatrixParams(const OptionMap& params, uint64_t seed, MatrixOptions* options);
 
 // Per-caller counters (no atomics in the hot path; callers sum them).
 struct MatrixCounters {
@@ -33,7 +44,11 @@ struct MatrixCounters {
   double clamp_lost = 0;     // luminance removed by the clamp on visible elements
   double clamp_kept = 0;     // luminance of visible clamped-light elements after the clamp
   uint64_t transmittance_evals = 0;  // visible connections attenuated through media (walks)
+  double clamp_compensated = 0;      // luminance the clamp compensation added back
+  uint64_t compensation_paths = 0;   // compensation samples that found a surface within the clamp
   void Add(const MatrixCounters& o) {
+    clamp_compensated += o.clamp_compensated;
+    compensation_paths += o.compensation_paths;
     elements += o.elements;
     transmittance_evals += o.transmittance_evals;
     shadow_rays += o.shadow_rays;
@@ -50,6 +65,7 @@ class LightingMatrix {
  public:
   LightingMatrix(const Scene& scene, const ReceiverSet& receivers, const LightSet& lights,
                  const MatrixOptions& options);
+  ~LightingMatrix();
 
   // Rows: the shading points (receivers.points, row i = point i), then the eye segments
   // (row points.size() + s = receivers.segments[s]).
@@ -74,6 +90,12 @@ class LightingMatrix {
   // A column restricted to a row set: out[k] = A(rows[k], col).
   void Column(uint32_t col, std::span<const uint32_t> rows, std::span<RGB> out,
               MatrixCounters* counters) const;
+
+  // The light the clamp removed from a surface row, estimated by path tracing (Kollig & Keller
+  // 2004's residual, traced as in Engelhardt et al. 2012; clamp_compensation.cpp); zero for
+  // eye-segment rows and when compensation is off. Deterministic in (job seed, row).
+  bool compensates() const { return compensation_samples_ > 0 && clamp_distance_ > 0; }
+  RGBAccum ClampCompensation(uint32_t row, MatrixCounters* counters) const;
 
   // Benchmarks only (bench/): appends every shadow ray handed to Embree to `rays` (not
   // thread-safe: record from one thread). nullptr stops recording.
@@ -146,6 +168,9 @@ class LightingMatrix {
   };
   DiffuseLightArrays light_arrays_;
   float clamp_distance_ = 0, clamp_distance2_ = 0;
+  int compensation_samples_ = 0;
+  uint64_t compensation_seed_ = 0;
+  std::unique_ptr<PathTracer> compensation_tracer_;
   mutable std::vector<RTCRay>* recorded_rays_ = nullptr;
   int segment_samples_ = 4;
   int max_depth_ = 5;

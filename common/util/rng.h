@@ -37,6 +37,7 @@ enum class RngStream : uint64_t {
   kMedium = 8,
   kSlicing = 9,
   kPathSample = 10,  // the path tracer: one generator per (pixel, sample index)
+  kCompensation = 11,  // the clamp compensation: one generator per (row, sample)
 };
 
 // PCG32 (O'Neill 2014): small state, good statistics, cheap to seed per pixel / per path.

@@ -64,6 +64,10 @@ RenderOutput RenderRoom(const TempDir& dir, double ox, double oy, double oz) {
   s.method = "brute";
   s.lights = 2000;
   s.seed = 5;
+  // Without the clamp's compensation: at 1e4 the ray offsets exceed the clamp distance, so
+  // neither the clamp nor its compensation acts there, while both do near the origin; this test
+  // is about precision, so only precision may differ between the two renders.
+  s.params = {"clamp_compensation=0"};
   return RenderScene(dir.Write("room.pbrt", Room(ox, oy, oz)), s);
 }
 

@@ -203,7 +203,7 @@ std::vector<RGBAccum> RunReversed(const Plan& plan) {
   for (int stage = 0; stage < method.stage_count(); ++stage) {
     std::vector<SubMatrixTask> tasks = method.PlanStage(stage, ctx, plan.tasks, artifact);
     std::vector<TaskOutput> outputs(tasks.size());
-    for (size_t t = tasks.size(); t-- > 0;) outputs[t] = method.RunTask(ctx, tasks[t], artifact);
+    for (size_t t = tasks.size(); t-- > 0;) outputs[t] = RunGatherTask(method, ctx, tasks[t], artifact);
     if (stage + 1 < method.stage_count()) {
       artifact = method.Combine(stage, ctx, outputs);
     } else {
