@@ -33,9 +33,9 @@ out="$root/docs/performance-results.md"
   echo
   echo "Command: \`lightfarm_bench --benchmark_repetitions=$reps --benchmark_enable_random_interleaving=true\`"
   echo
-  echo "Rates are shadow rays per second for the gathers; for \\`PathTrace\\` (the \\`path\\` method's tracer, one core) they count every ray it"
-  echo "traces, closest hits and shadow rays, against the same rays replayed through Embree alone: what is left is"
-  echo "sampling, shading and the emitter and medium logic. The 0.7 target is the gathers' (issue 6)."
+  echo 'Rates are shadow rays per second for the gathers; for `PathTrace` (the `path` method'"'"'s tracer, one core) they count every ray it'
+  echo 'traces, closest hits and shadow rays, against the same rays replayed through Embree alone: what is left is'
+  echo 'sampling, shading and the emitter and medium logic. The 0.7 target is the gathers'"'"' (issue 6).'
   echo
   echo "| gather | median gather rate (rays/s) | median raw Embree rate | efficiency (ratio of medians) | paired ratios | target ≥ 0.7 |"
   echo "|---|---|---|---|---|---|"

@@ -185,7 +185,19 @@ for tag in tags:
                   f"{'—' if ratio is None else f'{ratio:.2f}'} | {verdict} |")
 md += ["", "`level`: within 10% of each other. Where a verdict says `path wins`, virtual lights lose on that "
        "scene at that budget; the per-scene sections show why (brute force's own truth error is the "
-       "floor of every many-light method)."]
+       "floor of every many-light method).",
+       "",
+       "What these tables do not settle:",
+       "",
+       "- The many-light methods' camera samples are fixed at 4 per pixel, so their floor includes 4-spp "
+       "aliasing at edges and around visible lights, which `path`'s 1024 spp does not have; the bench "
+       "does not yet sweep their spp (a list of spp values with a same-lights reference each).",
+       "- Small images favour `path`: its cost is per pixel, while light generation and clustering are "
+       "fixed costs of the many-light methods that larger images amortise.",
+       "- A path-traced truth that stopped at its time limit (volumetric-caustic: a tiny, very bright "
+       "light seen through glass, where unidirectional path tracing is weakest) carries the noise its "
+       "section states; errors below that noise are not measured. For the same reason `path`'s own "
+       "error on water-caustic is fireflies (its 1024-spp run can be worse than its 256-spp one)."]
 if skipped:
     md += ["", "Failed or interrupted benches (last line of their log):", ""]
     md += [f"- {s}" for s in skipped]
