@@ -13,6 +13,7 @@
 #include "common/image/image_io.h"
 #include "common/image/metrics.h"
 #include "common/util/error.h"
+#include "common/util/rng.h"
 
 namespace lightfarm {
 
@@ -20,7 +21,10 @@ namespace fs = std::filesystem;
 
 namespace {
 
-constexpr int kTruthFormat = 1;  // bump when a cached truth's meaning changes
+constexpr int kTruthFormat = 2;  // bump when a cached truth's meaning changes (2: own seed)
+// The truth's samples come from their own seed: a `path` run of the bench with the job seed must
+// not share samples with the image it is measured against.
+constexpr uint64_t kTruthSeedStream = 0x7E57;
 constexpr int kMinPasses = 4;    // fewer passes give no usable variance
 
 std::string TruthKey(const TruthRequest& r) {
@@ -93,7 +97,7 @@ Truth RenderPathTruth(const TruthRequest& r) {
   s.width = r.width;
   s.height = r.height;
   s.filter = r.filter;
-  s.seed = r.seed;
+  s.seed = HashSeed({r.seed, kTruthSeedStream});
   s.spp = r.pass_spp;
   Plan plan = BuildPlan(r.scene, s, nullptr);
   PassAccumulator acc;
