@@ -44,6 +44,26 @@ std::string Short(double v) {
   return buf;
 }
 
+// Adds the choice's parameters to the settings, except keys the user set with --param.
+void AddChosenParams(const TargetChoice& c, const std::vector<std::string>& user_params, RenderSettings* s) {
+  for (const std::string& p : c.params) {
+    const std::string key = p.substr(0, p.find('='));
+    bool user_set = false;
+    for (const std::string& u : user_params) user_set = user_set || u.rfind(key + "=", 0) == 0;
+    if (!user_set) s->params.push_back(p);
+  }
+}
+
+// The error of `image` against `truth_file` when it has the image's size, printed; false if not.
+bool PrintTruthError(const fs::path& truth_file, const Image& image) {
+  if (!fs::exists(truth_file)) return false;
+  const Image truth = ReadImage(truth_file.string());
+  if (!truth.SameSize(image)) return false;
+  const ErrorMetrics m = CompareImages(truth, image);
+  std::fprintf(stderr, "; measured against the truth: rel_l1 %.4f, rel_l2 %.4f\n", m.rel_l1, m.rel_l2);
+  return true;
+}
+
 // Applies a choice made against the truth: method (when auto), lights, spp, parameters.
 void ApplyTruthChoice(const TargetChoice& c, const TargetErrorArgs& a, double target,
                       const std::vector<std::string>& user_params, RenderSettings* s) {
@@ -62,12 +82,7 @@ void ApplyTruthChoice(const TargetChoice& c, const TargetErrorArgs& a, double ta
   }
   if (c.lights > 0 && !a.lights_given) s->lights = c.lights;
   if (c.spp > 0 && s->spp == 0) s->spp = c.spp;
-  for (const std::string& p : c.params) {
-    const std::string key = p.substr(0, p.find('='));
-    bool user_set = false;
-    for (const std::string& u : user_params) user_set = user_set || u.rfind(key + "=", 0) == 0;
-    if (!user_set) s->params.push_back(p);
-  }
+  AddChosenParams(c, user_params, s);
 }
 
 }  // namespace
@@ -101,12 +116,7 @@ TargetErrorPlan ApplyTargetError(const TargetErrorArgs& a, const std::string& sc
       throw OptionError("--target-error with --method auto needs the scene's bench results against the truth "
                         "(run `lightfarm bench` on it) or a method");
     plan.choice = ChooseForTargetError(s->method, a.target, plan.rows, *s);
-    for (const std::string& p : plan.choice.params) {
-      const std::string key = p.substr(0, p.find('='));
-      bool user_set = false;
-      for (const std::string& u : plan.user_params) user_set = user_set || u.rfind(key + "=", 0) == 0;
-      if (!user_set) s->params.push_back(p);
-    }
+    AddChosenParams(plan.choice, plan.user_params, s);
   }
   std::fprintf(stderr, "target error %g (%s): %s %s%s, from %s; predicted time %s\n", a.target,
                plan.choice.metric.c_str(), s->method.c_str(), plan.choice.setting.c_str(),
@@ -127,24 +137,12 @@ void ReportTargetError(const TargetErrorPlan& plan, const TargetErrorArgs& a,
                               : "unknown";
   std::fprintf(stderr, "target error %g: took %.2f s; estimated %s %s", a.target, seconds,
                plan.choice.metric.c_str(), estimated.c_str());
-  // Against the truth the bench measured with, when it has the image's size.
+  // Against the truth the bench measured with (beside its cost model, or in --bench-dir).
   if (HasTruth(plan.rows)) {
-    const fs::path truth_file = TruthModelPath(a.cache_dir.empty() ? DefaultBenchCacheDir() : a.cache_dir, scene);
-    if (a.bench_dir.empty() && fs::exists(truth_file)) {
-      const Image truth = ReadImage(truth_file.string());
-      if (truth.SameSize(image)) {
-        const ErrorMetrics m = CompareImages(truth, image);
-        std::fprintf(stderr, "; measured against the truth: rel_l1 %.4f, rel_l2 %.4f\n", m.rel_l1, m.rel_l2);
-        return;
-      }
-    } else if (!a.bench_dir.empty() && fs::exists(fs::path(a.bench_dir) / "truth.exr")) {
-      const Image truth = ReadImage((fs::path(a.bench_dir) / "truth.exr").string());
-      if (truth.SameSize(image)) {
-        const ErrorMetrics m = CompareImages(truth, image);
-        std::fprintf(stderr, "; measured against the truth: rel_l1 %.4f, rel_l2 %.4f\n", m.rel_l1, m.rel_l2);
-        return;
-      }
-    }
+    const fs::path truth_file = a.bench_dir.empty()
+                                    ? TruthModelPath(a.cache_dir.empty() ? DefaultBenchCacheDir() : a.cache_dir, scene)
+                                    : fs::path(a.bench_dir) / "truth.exr";
+    if (PrintTruthError(truth_file, image)) return;
     std::fprintf(stderr, "; no truth of this image's size to measure against\n");
     return;
   }
