@@ -215,7 +215,7 @@ std::vector<BenchRow> RunBench(const BenchOptions& options, const BenchProgress&
   // A truth image at another resolution is area-averaged to the bench's, which is a box filter
   // over the bench's pixels: render with that filter too, or the filters' difference is measured.
   if (use_truth && truth_source != "path" && o.filter.empty() && o.width > 0) {
-    const Image file = ReadImage(truth_source);
+    const ImageSize file = ReadImageSize(truth_source);  // the header only: GetTruth reads the pixels
     if (file.width != o.width || file.height != o.height) {
       o.filter = "box";
       spdlog::info("bench: the truth {} ({}x{}) is area-averaged to {}x{}, so every run uses the box filter "

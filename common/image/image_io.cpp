@@ -87,6 +87,13 @@ uint8_t LinearToSRGB8(float linear) {
   return static_cast<uint8_t>(std::lround(LinearToSRGB(linear) * 255.f));
 }
 
+ImageSize ReadImageSize(const std::string& path) {
+  std::unique_ptr<OIIO::ImageInput> in = OIIO::ImageInput::open(path);
+  if (!in) throw std::runtime_error("cannot read image \"" + path + "\": " + OIIO::geterror());
+  const OIIO::ImageSpec& spec = in->spec();
+  return {spec.full_width > 0 ? spec.full_width : spec.width, spec.full_height > 0 ? spec.full_height : spec.height};
+}
+
 Image ReadImage(const std::string& path) {
   std::unique_ptr<OIIO::ImageInput> in = OIIO::ImageInput::open(path);
   if (!in) {

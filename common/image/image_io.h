@@ -17,6 +17,12 @@ namespace lightfarm {
 // outside the data window.
 Image ReadImage(const std::string& path);
 
+// The size ReadImage would return (the display window), from the file's header alone.
+struct ImageSize {
+  int width = 0, height = 0;
+};
+ImageSize ReadImageSize(const std::string& path);
+
 // Writes linear float RGB OpenEXR (32-bit float channels R, G, B; zip compression).
 // The file is written to a temporary file in the same directory and renamed over `path`, so a
 // failed write never leaves a partial `path` behind (nor replaces an existing one).

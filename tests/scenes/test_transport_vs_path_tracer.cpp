@@ -80,16 +80,21 @@ RegionMean Mean(const Image& img, const Image* variance, int x0, int y0, int w, 
   return m;
 }
 
-void ExpectMatchesPathTracer(int max_depth, const std::string& media_lights, double tolerance) {
-  TempDir dir;
-  const std::string path = dir.Write("fog-box.pbrt", FogBox(max_depth));
+// The independent tracer's image of a fog box (box filter, 4096 spp, seed 3) with its variance.
+PathTracedImage TraceWithChecker(const std::string& path) {
   SceneBuildOptions build;
   build.filter = "box";
   std::unique_ptr<Scene> scene = Scene::Build(ParseSceneFile(path), build);
   VolpathCheckOptions pt;
   pt.spp = 4096;
   pt.seed = 3;
-  const PathTracedImage traced = RenderPathTraced(*scene, pt);
+  return RenderPathTraced(*scene, pt);
+}
+
+void ExpectMatchesPathTracer(int max_depth, const std::string& media_lights, double tolerance) {
+  TempDir dir;
+  const std::string path = dir.Write("fog-box.pbrt", FogBox(max_depth));
+  const PathTracedImage traced = TraceWithChecker(path);
 
   RenderSettings s;
   s.method = "brute";
@@ -135,13 +140,7 @@ TEST(TransportVsPathTracer, MultipleScatteringWithMediumVplsMatches) {
 void ExpectPathMethodMatchesPathTracer(int max_depth) {
   TempDir dir;
   const std::string path = dir.Write("fog-box.pbrt", FogBox(max_depth));
-  SceneBuildOptions build;
-  build.filter = "box";
-  std::unique_ptr<Scene> scene = Scene::Build(ParseSceneFile(path), build);
-  VolpathCheckOptions pt;
-  pt.spp = 4096;
-  pt.seed = 3;
-  const PathTracedImage traced = RenderPathTraced(*scene, pt);
+  const PathTracedImage traced = TraceWithChecker(path);
 
   RenderSettings s;
   s.method = "path";
