@@ -3,6 +3,7 @@
 #include <cctype>
 #include <cstdio>
 #include <iostream>
+#include <limits>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <stdexcept>
@@ -23,6 +24,7 @@ struct CompareOptions {
   std::string heatmap;
   float heatmap_max = kDefaultHeatmapMaxError;
   bool json = false;
+  float exclude_above = std::numeric_limits<float>::infinity();
 };
 
 std::string SizeString(const Image& image) {
@@ -56,7 +58,9 @@ void RunCompare(const CompareOptions& options) {
     reference = ResizeImage(reference, image.width, image.height);
   }
 
-  const ErrorMetrics metrics = CompareImages(reference, image);
+  if (!(options.exclude_above > 0.f))
+    throw OptionError("--exclude-above must be positive, got " + std::to_string(options.exclude_above));
+  const ErrorMetrics metrics = CompareImages(reference, image, options.exclude_above);
   if (!options.heatmap.empty()) {
     WritePNG(options.heatmap, ErrorHeatmap(reference, image, options.heatmap_max));
   }
@@ -67,6 +71,7 @@ void RunCompare(const CompareOptions& options) {
     out["rel_l1"] = metrics.rel_l1;
     out["rmse"] = metrics.rmse;
     out["excluded_pixels"] = metrics.excluded_pixels;
+    out["excluded_bright"] = metrics.excluded_bright;
     out["reference"] = options.reference;
     out["image"] = options.image;
     out["width"] = image.width;
@@ -79,6 +84,8 @@ void RunCompare(const CompareOptions& options) {
     std::cout << line;
     if (metrics.excluded_pixels > 0)
       std::cout << "  excluded=" << metrics.excluded_pixels << " (non-finite reference pixels)";
+    if (metrics.excluded_bright > 0)
+      std::cout << "  excluded_bright=" << metrics.excluded_bright << " (reference pixels above --exclude-above)";
     std::cout << std::endl;
   }
 }
@@ -103,6 +110,9 @@ void AddCompareCommand(CLI::App& app) {
   cmd->add_option("--heatmap-max", options->heatmap_max,
                   "Relative error drawn in the heatmap's brightest colour")
       ->capture_default_str();
+  cmd->add_option("--exclude-above", options->exclude_above,
+                  "Leave out reference pixels with a channel above this (an emitter's own pixels, "
+                  "which a few samples hit or miss)");
   cmd->add_flag("--json", options->json,
                 "Print {\"rel_l2\", \"rel_l1\", \"rmse\", \"reference\", \"image\", \"width\", "
                 "\"height\"} as JSON");

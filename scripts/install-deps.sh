@@ -9,6 +9,7 @@ packages=(
   # renderer core
   libembree-dev libopenimageio-dev openimageio-tools libtbb-dev libspdlog-dev libfmt-dev
   libeigen3-dev libcli11-dev nlohmann-json3-dev libmetis-dev libnanovdb-dev libopenvdb-dev
+  libnanoflann-dev
   # farm
   libgrpc++-dev libgrpc-dev protobuf-compiler protobuf-compiler-grpc libprotobuf-dev
   libsqlite3-dev libssl-dev libcpp-httplib-dev openssl

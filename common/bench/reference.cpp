@@ -22,7 +22,7 @@ namespace fs = std::filesystem;
 namespace {
 
 // Bump when the cached format or the meaning of the key changes.
-constexpr uint64_t kReferenceFormat = 3;  // 2: subsets include eye-segment rows; 3: clamp compensation
+constexpr uint64_t kReferenceFormat = 4;  // 2: subsets include eye-segment rows; 3: clamp compensation; 4: caustics
 // Files above this size (volume grids) are hashed by size and mtime, not content.
 constexpr uintmax_t kContentHashLimit = uintmax_t(64) << 20;
 // Stream id of the pixel-subset choice (outside RngStream's range: bench only).
@@ -154,8 +154,8 @@ BenchReference ComputeReference(const ReferenceRequest& r) {
   std::vector<MatrixCounters> per_row(rows.size());
   tbb::parallel_for(size_t(0), rows.size(), [&](size_t i) {
     sums[rows[i]] = plan.matrix->RowSum(rows[i], &per_row[i]);
-    // As RunGatherTask adds it to every final-stage row (zero when compensation is off).
-    sums[rows[i]].Add(plan.matrix->ClampCompensation(rows[i], &per_row[i]));
+    // As RunGatherTask adds it to every final-stage row (compensation and caustics).
+    sums[rows[i]].Add(plan.matrix->ExtraLight(rows[i], &per_row[i]));
   });
   for (const MatrixCounters& c : per_row) counters.Add(c);
   const double gather_seconds = std::chrono::duration<double>(Clock::now() - t_gather).count();

@@ -9,8 +9,8 @@
 namespace lightfarm {
 
 // Workers and coordinator must speak the same worker protocol and task encodings
-// (serialize.h's kSerializeVersion moves with it). 2: film methods (path).
-inline constexpr uint32_t kWorkerProtocolVersion = 2;
+// (serialize.h's kSerializeVersion moves with it). 2: film methods (path); 3: caustic counters.
+inline constexpr uint32_t kWorkerProtocolVersion = 3;
 
 // A scene file's path as a manifest names it: relative, at most 4096 bytes, no NUL, and no
 // component that is empty, "." or ".." (a name that merely contains two dots, "tex/a..b.png",

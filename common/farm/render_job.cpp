@@ -161,6 +161,7 @@ Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, Ph
     plan.receivers.width = scene.hints().width;
     plan.receivers.height = scene.hints().height;
     plan.receivers.spp = settings.spp > 0 ? settings.spp : std::max(1, scene.hints().pixel_samples);
+    plan.matrix_options.caustic_photons = 0;  // the path tracer finds caustics by itself
     plan.matrix = std::make_unique<LightingMatrix>(scene, plan.receivers, plan.lights, plan.matrix_options);
     plan.tasks = FilmTasks(plan.receivers.width, plan.receivers.height, plan.receivers.spp, film_tile,
                            film_pass_spp, settings.seed);
@@ -407,6 +408,11 @@ nlohmann::json MakeStats(const Plan& plan, const RenderSettings& settings,
                  denom > 0 ? (counters.clamp_lost - (plan.matrix->compensates() ? counters.clamp_compensated : 0.0)) / denom
                            : 0.0},
                 {"compensation_paths", counters.compensation_paths}};
+  // Caustics gathered from photons (caustic_photons.h): zero unless the scene has delta lobes
+  // on light paths (or --param caustic_photons asks for them).
+  s["caustics"] = {{"photons", plan.matrix->caustic_photon_target()},
+                   {"photons_used", counters.caustic_photons_used},
+                   {"energy_fraction", total_lum > 0 ? counters.caustic_gathered / total_lum : 0.0}};
   s["film"] = {{"nan_samples", nan_samples}};
   s["method_stats"] = nlohmann::json::object();
   for (const auto& [k, v] : outcome.method_stats) s["method_stats"][k] = v;

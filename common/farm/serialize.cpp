@@ -50,12 +50,14 @@ void PutCounters(ByteWriter& w, const MatrixCounters& c) {
   w.U64(c.elements); w.U64(c.shadow_rays); w.F64(c.clamp_lost); w.F64(c.clamp_kept);
   w.U64(c.transmittance_evals);
   w.F64(c.clamp_compensated); w.U64(c.compensation_paths);
+  w.F64(c.caustic_gathered); w.U64(c.caustic_photons_used);
 }
 MatrixCounters GetCounters(ByteReader& r) {
   MatrixCounters c;
   c.elements = r.U64(); c.shadow_rays = r.U64(); c.clamp_lost = r.F64(); c.clamp_kept = r.F64();
   c.transmittance_evals = r.U64();
   c.clamp_compensated = r.F64(); c.compensation_paths = r.U64();
+  c.caustic_gathered = r.F64(); c.caustic_photons_used = r.U64();
   return c;
 }
 

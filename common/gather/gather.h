@@ -83,8 +83,8 @@ class GatherMethod {
 };
 
 // Runs one task as every driver must (the embedded stage loop and the workers): the method's
-// RunTask, then, on the final stage of a matrix method whose matrix compensates the clamp, each
-// row's ClampCompensation added to its sum (rows in parallel, summed in row order).
+// RunTask, then, on the final stage of a matrix method, each row's ExtraLight (the clamp's
+// compensation, the caustics) added to its sum (rows in parallel, summed in row order).
 TaskOutput RunGatherTask(const GatherMethod& method, const GatherContext& ctx, const SubMatrixTask& task,
                          const StageArtifact& previous);
 

@@ -74,13 +74,17 @@ const std::array<RGB, kColorMapSize>& ColorMap() {
 
 }  // namespace
 
-ErrorMetrics CompareImages(const Image& reference, const Image& image) {
+ErrorMetrics CompareImages(const Image& reference, const Image& image, float exclude_above) {
   CheckComparable(reference, image);
   double diff2 = 0, ref2 = 0, diff1 = 0, ref1 = 0;
-  size_t excluded = 0;
+  size_t excluded = 0, bright = 0;
   for (size_t i = 0; i < reference.PixelCount(); ++i) {
     if (!reference.pixels[i].IsFinite()) {
       ++excluded;
+      continue;
+    }
+    if (reference.pixels[i].Max() > exclude_above) {
+      ++bright;
       continue;
     }
     for (int c = 0; c < 3; ++c) {
@@ -98,8 +102,9 @@ ErrorMetrics CompareImages(const Image& reference, const Image& image) {
   ErrorMetrics m;
   m.rel_l2 = std::sqrt(diff2 / ref2);
   m.rel_l1 = diff1 / ref1;
-  m.rmse = std::sqrt(diff2 / (3.0 * static_cast<double>(reference.PixelCount() - excluded)));
+  m.rmse = std::sqrt(diff2 / (3.0 * static_cast<double>(reference.PixelCount() - excluded - bright)));
   m.excluded_pixels = excluded;
+  m.excluded_bright = bright;
   return m;
 }
 

@@ -2,6 +2,8 @@
 // error heatmap for looking at where the error is.
 #pragma once
 
+#include <limits>
+
 #include "common/image/image.h"
 
 namespace lightfarm {
@@ -11,13 +13,17 @@ struct ErrorMetrics {
   double rel_l1 = 0;  // ‖ref − img‖₁ / ‖ref‖₁ over all pixel channels (Huo 2016)
   double rmse = 0;    // sqrt(mean over all pixel channels of (ref − img)²)
   size_t excluded_pixels = 0;  // reference pixels that are NaN/Inf, left out of all three
+  size_t excluded_bright = 0;  // reference pixels above exclude_above, left out as well
 };
 
 // Computed in double. A path-traced reference may hold a stray NaN/Inf pixel (water-caustic's
 // does): such pixels are excluded and counted. Throws std::runtime_error if the sizes differ, an
 // image is empty, the compared image holds a NaN/Inf (a renderer bug the metrics must not hide),
 // or the reference is all zero (relative errors undefined).
-ErrorMetrics CompareImages(const Image& reference, const Image& image);
+// exclude_above leaves out the reference pixels with a channel above it as well (a diagnostic:
+// the error without an emitter's own pixels, which a few samples hit or miss).
+ErrorMetrics CompareImages(const Image& reference, const Image& image,
+                           float exclude_above = std::numeric_limits<float>::infinity());
 
 // Top of the heatmap scale when none is given: an absolute error of 20% of the reference's
 // mean luminance (or more) gets the brightest colour.

@@ -1,6 +1,9 @@
 #include "common/lights/emitters.h"
 
 #include <algorithm>
+#include <cmath>
+
+#include "common/util/sampling.h"
 
 namespace lightfarm {
 
@@ -21,6 +24,21 @@ std::vector<EmitterRef> CollectEmitters(const Scene& scene, float scene_radius) 
     out.push_back({EmitterRef::kInfinite, i,
                    scene.infinite_emitters()[i].AverageRadiance() * (4 * kPi * disk)});
   return out;
+}
+
+PowerPicker::PowerPicker(const std::vector<EmitterRef>& emitters) {
+  for (const EmitterRef& e : emitters) {
+    total_ += double(std::max(e.power.Luminance(), 0.f));
+    cdf_.push_back(float(total_));
+  }
+}
+
+size_t PowerPicker::Pick(float u, float* probability) const {
+  const float x = u * float(total_);
+  const size_t i = std::min<size_t>(std::upper_bound(cdf_.begin(), cdf_.end(), x) - cdf_.begin(), cdf_.size() - 1);
+  const float lo = i == 0 ? 0.f : cdf_[i - 1];
+  *probability = (cdf_[i] - lo) / float(total_);
+  return i;
 }
 
 EmitterSampler::EmitterSampler(const Scene& scene) : scene_(scene) {
@@ -123,6 +141,76 @@ float EmitterSampler::PdfArea(uint32_t emitter, Vec3 p, const SurfaceHit& hit) c
 float EmitterSampler::PdfInfinite(uint32_t emitter, Vec3 w) const {
   if (emitter >= infinite_slot_.size() || infinite_slot_[emitter] < 0) return 0.f;
   return SelectProbability(size_t(infinite_slot_[emitter])) * scene_.infinite_emitters()[emitter].Pdf(w);
+}
+
+EmittedRay SampleEmittedRay(const Scene& scene, const EmitterRef& e, Vec3 center, float radius,
+                          Rng& rng) {
+  EmittedRay out;
+  Vec2 u1{rng.Uniform(), rng.Uniform()}, u2{rng.Uniform(), rng.Uniform()};
+  switch (e.kind) {
+    case EmitterRef::kArea: {
+      const AreaEmitter& a = scene.area_emitters()[e.index];
+      Vec3 p, n;
+      scene.SampleAreaEmitter(a, u1, &p, &n);
+      Vec3 local = SampleCosineHemisphere(u2);
+      float side = 1.f;
+      if (a.two_sided && rng.Uniform() < 0.5f) side = -1.f;
+      Frame f(n * side);
+      Vec3 d = f.FromLocal(local);
+      if (local.z <= 0) return out;
+      // Φ-weighted: pdf = 1/A · cos/π (· 1/2 two-sided); L·cos/pdf = L·A·π (·2).
+      out.beta = a.L * (a.area * kPi * (a.two_sided ? 2.f : 1.f));
+      out.ray = {OffsetRayOrigin(p, n, d), d, kInfinity};
+      out.ng = n;
+      const Shape& sh = scene.shapes()[a.shape];
+      out.medium = sh.medium_transition ? (Dot(d, n) > 0 ? sh.outside_medium : sh.inside_medium)
+                                        : sh.outside_medium;
+      break;
+    }
+    case EmitterRef::kPoint: {
+      const PointEmitter& pe = scene.point_emitters()[e.index];
+      Vec3 d;
+      float pdf;
+      if (pe.spot) {
+        Frame f(pe.axis);
+        d = f.FromLocal(SampleUniformCone(u1, pe.cos_falloff_end));
+        pdf = UniformConePdf(pe.cos_falloff_end);
+      } else {
+        d = SampleUniformSphere(u1);
+        pdf = kUniformSpherePdf;
+      }
+      out.beta = pe.intensity * (pe.Falloff(d) / pdf);
+      out.ray = {pe.position, d, kInfinity};
+      out.medium = pe.medium;
+      break;
+    }
+    case EmitterRef::kDistant: {
+      const DistantEmitter& de = scene.distant_emitters()[e.index];
+      Frame f(de.direction);
+      Vec2 pd = SampleUniformDiskConcentric(u1) * radius;
+      Vec3 o = center - de.direction * radius + f.s * pd.x + f.t * pd.y;
+      out.beta = de.L * (kPi * radius * radius);
+      out.ray = {o, de.direction, kInfinity};
+      out.medium = de.medium;
+      break;
+    }
+    case EmitterRef::kInfinite: {
+      const InfiniteEmitter& ie = scene.infinite_emitters()[e.index];
+      float pdf;
+      Vec3 w = ie.SampleDirection(u1, &pdf);  // towards the environment
+      if (!(pdf > 0)) return out;
+      Frame f(-w);
+      Vec2 pd = SampleUniformDiskConcentric(u2) * radius;
+      Vec3 o = center + w * radius + f.s * pd.x + f.t * pd.y;
+      out.beta = ie.Le(w) * (kPi * radius * radius / pdf);
+      out.ray = {o, -w, kInfinity};
+      out.medium = ie.medium;
+      break;
+    }
+  }
+  out.valid = out.beta.IsFinite() && !out.beta.IsBlack() && IsFinite(out.ray.o) &&
+              IsFinite(out.ray.d);
+  return out;
 }
 
 }  // namespace lightfarm

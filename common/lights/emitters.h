@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "common/scene/scene.h"
+#include "common/util/rng.h"
 
 namespace lightfarm {
 
@@ -21,6 +22,33 @@ struct EmitterRef {
 // Every emitter of the scene with its power; scene_radius bounds the scene (distant and infinite
 // lights deliver their power through a disk of that radius).
 std::vector<EmitterRef> CollectEmitters(const Scene& scene, float scene_radius);
+
+// A ray leaving an emitter with the flux it carries (divided by its sampling pdf): the start of
+// a particle path (light generation, caustic photons).
+struct EmittedRay {
+  Ray ray;
+  RGB beta;
+  Vec3 ng;          // emitter surface normal (area lights), for the origin offset
+  int medium = -1;  // the medium the ray starts in
+  bool valid = false;
+};
+// Area lights: a point ∝ area and a cosine-weighted direction; point and spot lights: a
+// direction in their cone; distant and infinite lights: a ray through the disk of `radius`
+// around `center` that bounds the scene.
+EmittedRay SampleEmittedRay(const Scene& scene, const EmitterRef& e, Vec3 center, float radius, Rng& rng);
+
+// Picks emitters ∝ the luminance of their power (particle paths start so).
+class PowerPicker {
+ public:
+  explicit PowerPicker(const std::vector<EmitterRef>& emitters);
+  bool empty() const { return !(total_ > 0); }
+  // The emitter's index in `emitters` for u ∈ [0, 1), and the probability it had.
+  size_t Pick(float u, float* probability) const;
+
+ private:
+  std::vector<float> cdf_;
+  double total_ = 0;
+};
 
 // Light arriving at a reference point from one sampled point or direction of an emitter.
 struct LightSample {

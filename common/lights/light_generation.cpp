@@ -15,85 +15,6 @@ namespace lightfarm {
 
 namespace {
 
-// A ray leaving an emitter, with the flux it carries (already divided by its pdf).
-struct EmittedRay {
-  Ray ray;
-  RGB beta;
-  Vec3 ng;  // emitter surface normal (area lights), for the origin offset
-  int medium = -1;  // the medium the ray starts in
-  bool valid = false;
-};
-
-EmittedRay SampleEmission(const Scene& scene, const EmitterRef& e, Vec3 center, float radius,
-                          Rng& rng) {
-  EmittedRay out;
-  Vec2 u1{rng.Uniform(), rng.Uniform()}, u2{rng.Uniform(), rng.Uniform()};
-  switch (e.kind) {
-    case EmitterRef::kArea: {
-      const AreaEmitter& a = scene.area_emitters()[e.index];
-      Vec3 p, n;
-      scene.SampleAreaEmitter(a, u1, &p, &n);
-      Vec3 local = SampleCosineHemisphere(u2);
-      float side = 1.f;
-      if (a.two_sided && rng.Uniform() < 0.5f) side = -1.f;
-      Frame f(n * side);
-      Vec3 d = f.FromLocal(local);
-      if (local.z <= 0) return out;
-      // Φ-weighted: pdf = 1/A · cos/π (· 1/2 two-sided); L·cos/pdf = L·A·π (·2).
-      out.beta = a.L * (a.area * kPi * (a.two_sided ? 2.f : 1.f));
-      out.ray = {OffsetRayOrigin(p, n, d), d, kInfinity};
-      out.ng = n;
-      const Shape& sh = scene.shapes()[a.shape];
-      out.medium = sh.medium_transition ? (Dot(d, n) > 0 ? sh.outside_medium : sh.inside_medium)
-                                        : sh.outside_medium;
-      break;
-    }
-    case EmitterRef::kPoint: {
-      const PointEmitter& pe = scene.point_emitters()[e.index];
-      Vec3 d;
-      float pdf;
-      if (pe.spot) {
-        Frame f(pe.axis);
-        d = f.FromLocal(SampleUniformCone(u1, pe.cos_falloff_end));
-        pdf = UniformConePdf(pe.cos_falloff_end);
-      } else {
-        d = SampleUniformSphere(u1);
-        pdf = kUniformSpherePdf;
-      }
-      out.beta = pe.intensity * (pe.Falloff(d) / pdf);
-      out.ray = {pe.position, d, kInfinity};
-      out.medium = pe.medium;
-      break;
-    }
-    case EmitterRef::kDistant: {
-      const DistantEmitter& de = scene.distant_emitters()[e.index];
-      Frame f(de.direction);
-      Vec2 pd = SampleUniformDiskConcentric(u1) * radius;
-      Vec3 o = center - de.direction * radius + f.s * pd.x + f.t * pd.y;
-      out.beta = de.L * (kPi * radius * radius);
-      out.ray = {o, de.direction, kInfinity};
-      out.medium = de.medium;
-      break;
-    }
-    case EmitterRef::kInfinite: {
-      const InfiniteEmitter& ie = scene.infinite_emitters()[e.index];
-      float pdf;
-      Vec3 w = ie.SampleDirection(u1, &pdf);  // towards the environment
-      if (!(pdf > 0)) return out;
-      Frame f(-w);
-      Vec2 pd = SampleUniformDiskConcentric(u2) * radius;
-      Vec3 o = center + w * radius + f.s * pd.x + f.t * pd.y;
-      out.beta = ie.Le(w) * (kPi * radius * radius / pdf);
-      out.ray = {o, -w, kInfinity};
-      out.medium = ie.medium;
-      break;
-    }
-  }
-  out.valid = out.beta.IsFinite() && !out.beta.IsBlack() && IsFinite(out.ray.o) &&
-              IsFinite(out.ray.d);
-  return out;
-}
-
 // Distance along the (unit-direction) ray to where it leaves the scene's bounding sphere: the
 // end of a VRL in a medium that no surface bounds.
 float ExitDistance(const Ray& ray, Vec3 center, float radius) {
@@ -107,7 +28,7 @@ float ExitDistance(const Ray& ray, Vec3 center, float radius) {
 void TraceParticlePath(const Scene& scene, const EmitterRef& e, float p_select, Vec3 center,
                        float radius, int max_depth, MediumLights medium_lights, Rng& rng,
                        std::vector<VirtualLight>* out) {
-  EmittedRay em = SampleEmission(scene, e, center, radius, rng);
+  EmittedRay em = SampleEmittedRay(scene, e, center, radius, rng);
   if (!em.valid) return;
   RGB beta = em.beta / p_select;
   const float beta0 = std::max(beta.Max(), 1e-30f);
@@ -193,7 +114,6 @@ void TraceParticlePath(const Scene& scene, const EmitterRef& e, float p_select, 
       continue;
     }
     ++bounces;
-    Frame frame(hit.ns);
     if (!IsPurelySpecular(flags)) {
       VirtualLight v;
       v.kind = VirtualLightKind::kSurfaceVPL;
@@ -208,22 +128,10 @@ void TraceParticlePath(const Scene& scene, const EmitterRef& e, float p_select, 
       out->push_back(v);
     }
     if (bounces >= max_depth - 1) return;  // no later vertex could reach a receiver in budget
-    // Continue the path (importance transport: wo points back towards the light).
-    Vec3 wo_local = frame.ToLocal(wo);
-    auto bs = SampleBSDF(m, wo_local, rng.Uniform(), {rng.Uniform(), rng.Uniform()},
-                         TransportMode::kImportance);
-    if (!bs || !(bs->pdf > 0) || bs->f.IsBlack()) return;
-    Vec3 wi = frame.FromLocal(bs->wi);
-    // Shading-normal correction for importance transport (Veach 1997, Sec. 5.3).
-    float denom = AbsDot(wo, hit.ng) * std::abs(bs->wi.z);
-    if (!(denom > 0)) return;
-    float correction = AbsDot(wo, hit.ns) * AbsDot(wi, hit.ng) / denom;
-    beta *= bs->f * (std::abs(bs->wi.z) * correction / bs->pdf);
-    if (!beta.IsFinite() || beta.IsBlack()) return;
-    // A direction on the wrong side of the true surface would leak through it.
-    bool same_side = Dot(wi, hit.ng) * Dot(wo, hit.ng) > 0;
-    if (same_side != ((bs->flags & kBxDFReflection) != 0)) return;
-    through_specular = through_specular || bs->IsSpecular();
+    const std::optional<ParticleBounce> bounce = ScatterParticle(m, hit, wo, rng, &beta);
+    if (!bounce) return;
+    const Vec3 wi = bounce->wi;
+    through_specular = through_specular || bounce->specular;
     medium = scene.MediumAfter(hit, wi, medium);
     // Russian roulette on throughput relative to the emitted flux.
     if (bounces > 2) {
@@ -236,6 +144,26 @@ void TraceParticlePath(const Scene& scene, const EmitterRef& e, float p_select, 
 }
 
 }  // namespace
+
+std::optional<ParticleBounce> ScatterParticle(const Material& m, const SurfaceHit& hit, Vec3 wo, Rng& rng,
+                                              RGB* beta) {
+  const Frame frame(hit.ns);
+  const Vec3 wo_local = frame.ToLocal(wo);
+  auto bs = SampleBSDF(m, wo_local, rng.Uniform(), {rng.Uniform(), rng.Uniform()},
+                       TransportMode::kImportance);
+  if (!bs || !(bs->pdf > 0) || bs->f.IsBlack()) return std::nullopt;
+  const Vec3 wi = frame.FromLocal(bs->wi);
+  // Shading-normal correction for importance transport (Veach 1997, Sec. 5.3).
+  const float denom = AbsDot(wo, hit.ng) * std::abs(bs->wi.z);
+  if (!(denom > 0)) return std::nullopt;
+  const float correction = AbsDot(wo, hit.ns) * AbsDot(wi, hit.ng) / denom;
+  *beta *= bs->f * (std::abs(bs->wi.z) * correction / bs->pdf);
+  if (!beta->IsFinite() || beta->IsBlack()) return std::nullopt;
+  // A direction on the wrong side of the true surface would leak through it.
+  const bool same_side = Dot(wi, hit.ng) * Dot(wo, hit.ng) > 0;
+  if (same_side != ((bs->flags & kBxDFReflection) != 0)) return std::nullopt;
+  return ParticleBounce{wi, bs->IsSpecular()};
+}
 
 LightSet GenerateLights(const Scene& scene, const LightGenerationOptions& opt) {
   LightSet set;
@@ -315,13 +243,8 @@ LightSet GenerateLights(const Scene& scene, const LightGenerationOptions& opt) {
   // --- Indirect VPLs: particle paths until the budget is met -------------------------------
   size_t indirect_budget = opt.target_lights > set.lights.size() ? opt.target_lights - set.lights.size() : 0;
   if (!indirect || indirect_budget == 0 || emitters.empty()) return set;
-  std::vector<float> cdf;
-  double total = 0;
-  for (const EmitterRef& e : emitters) {
-    total += double(std::max(e.power.Luminance(), 0.f));
-    cdf.push_back(float(total));
-  }
-  if (!(total > 0)) return set;
+  const PowerPicker picker(emitters);
+  if (picker.empty()) return set;
 
   const size_t batch = 4096;
   // Give up if paths keep escaping: a scene that never bounces light yields no VPLs.
@@ -334,11 +257,8 @@ LightSet GenerateLights(const Scene& scene, const LightGenerationOptions& opt) {
       per_path[k].clear();
       uint64_t index = paths + k;
       Rng rng(HashSeed({opt.seed, uint64_t(RngStream::kParticlePath), index}));
-      float u = rng.Uniform() * float(total);
-      size_t ei = std::min<size_t>(std::upper_bound(cdf.begin(), cdf.end(), u) - cdf.begin(),
-                                   emitters.size() - 1);
-      float lo = ei == 0 ? 0.f : cdf[ei - 1];
-      float p_select = (cdf[ei] - lo) / float(total);
+      float p_select = 0;
+      const size_t ei = picker.Pick(rng.Uniform(), &p_select);
       TraceParticlePath(scene, emitters[ei], p_select, center, radius, opt.max_depth,
                         opt.medium_lights, rng, &per_path[k]);
     });

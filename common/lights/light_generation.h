@@ -2,9 +2,11 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 
 #include "common/lights/virtual_light.h"
 #include "common/scene/scene.h"
+#include "common/util/rng.h"
 
 namespace lightfarm {
 
@@ -38,5 +40,16 @@ struct LightGenerationOptions {
 // scattering event or a VRL for each free flight (opt.medium_lights). Paths are traced until the indirect budget is met;
 // every VPL's power is divided by the number of paths started.
 LightSet GenerateLights(const Scene& scene, const LightGenerationOptions& opt);
+
+// One bounce of a particle path (importance transport) at a surface: samples the BSDF from
+// wo (unit, back towards the light), multiplies beta by f·|cos|/pdf with the shading-normal
+// correction (Veach 1997, Sec. 5.3), and rejects a direction on the wrong side of the true
+// surface. nullopt when the path ends here.
+struct ParticleBounce {
+  Vec3 wi;        // the new direction of travel
+  bool specular;  // sampled from a delta lobe
+};
+std::optional<ParticleBounce> ScatterParticle(const Material& m, const SurfaceHit& hit, Vec3 wo, Rng& rng,
+                                              RGB* beta);
 
 }  // namespace lightfarm

@@ -24,7 +24,7 @@ RGBAccum LightingMatrix::ClampCompensation(uint32_t row, MatrixCounters* counter
   PathCounters pc;
   const float inv_n = 1.f / float(compensation_samples_);
   for (int s = 0; s < compensation_samples_; ++s) {
-    Rng rng(HashSeed({compensation_seed_, uint64_t(RngStream::kCompensation), row, uint64_t(s)}));
+    Rng rng(HashSeed({seed_, uint64_t(RngStream::kCompensation), row, uint64_t(s)}));
     const float uc = rng.Uniform();
     const Vec2 u{rng.Uniform(), rng.Uniform()};
     const std::optional<BSDFSample> bs = SampleBSDF(m, r.wo_local, uc, u, TransportMode::kRadiance);

@@ -7,6 +7,7 @@
 #include <array>
 #include <cmath>
 
+#include "common/scene/effects.h"
 #include "common/scene/phase.h"
 #include "common/util/sampling.h"
 
@@ -177,7 +178,12 @@ void ReadMatrixParams(const OptionMap& params, uint64_t seed, MatrixOptions* opt
   options->segment_samples = int(params.GetInt("segment_samples", 4, 1, 64));
   // Path-traced compensation of the clamp, samples per surface receiver (clamp_compensation.cpp).
   options->compensation_samples = int(params.GetInt("clamp_compensation", 4, 0, 64));
-  options->compensation_seed = seed;
+  options->seed = seed;
+  // Caustic photons (caustic_gather.cpp): the scene decides the default (the matrix's constructor).
+  options->caustic_photons = params.Has("caustic_photons") ? params.GetInt("caustic_photons", 0, 0, 1 << 26) : -1;
+  options->caustic_k = int(params.GetInt("caustic_k", 64, 1, 4096));
+  options->caustic_radius = float(params.GetDouble("caustic_radius", 0.02, 1e-6, 1.0));
+  options->caustic_volume_radius = float(params.GetDouble("caustic_volume_radius", 0.01, 1e-6, 1.0));
 }
 
 LightingMatrix::LightingMatrix(const Scene& scene, const ReceiverSet& receivers,
@@ -188,12 +194,19 @@ LightingMatrix::LightingMatrix(const Scene& scene, const ReceiverSet& receivers,
   segment_samples_ = options.segment_samples;
   max_depth_ = scene.hints().max_depth;
   compensation_samples_ = options.compensation_samples;
-  compensation_seed_ = options.compensation_seed;
+  seed_ = options.seed;
   if (compensates()) {
     PathTracerOptions pt;
     pt.max_depth = scene.hints().max_depth;
     compensation_tracer_ = std::make_unique<PathTracer>(scene, pt);
   }
+  caustic_photons_ = options.caustic_photons >= 0 ? options.caustic_photons
+                    : ComputeEffects(scene).caustics() ? kDefaultCausticPhotons
+                                                       : 0;
+  caustic_k_ = options.caustic_k;
+  caustic_radius_ = options.caustic_radius * std::max(scene.bounds().Radius(), 1e-6f);
+  caustic_volume_radius_ = options.caustic_volume_radius * std::max(scene.bounds().Radius(), 1e-6f);
+  
   const int max_depth = scene.hints().max_depth;
   rows_.resize(receivers.points.size());
   for (size_t i = 0; i < rows_.size(); ++i) {

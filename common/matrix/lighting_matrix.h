@@ -6,9 +6,11 @@
 
 #include <cstdint>
 #include <memory>
+#include <mutex>
 #include <span>
 #include <vector>
 
+#include "common/lights/caustic_photons.h"
 #include "common/lights/virtual_light.h"
 #include "common/integrator/path_tracer.h"
 #include "common/receivers/receivers.h"
@@ -29,8 +31,18 @@ struct MatrixOptions {
   // Path-traced compensation of the clamp (clamp_compensation.cpp): BSDF samples per surface
   // receiver that estimate the light the clamp removed; 0 turns it off (the --param default is 4).
   int compensation_samples = 0;
-  uint64_t compensation_seed = 0;  // the job seed: the compensation is part of the light set
+  // The job seed: the compensation and the caustic photons are part of the light transport.
+  uint64_t seed = 0;
+  // Caustic photons (caustic_photons.h) gathered on every row: the number stored, -1 for the
+  // default (kDefaultCausticPhotons when the scene has delta lobes on light paths,
+  // Effects::caustics, else none); k nearest on surfaces within caustic_radius, and the beam
+  // radius along eye segments, both × the scene's bounding-sphere radius.
+  long long caustic_photons = -1;
+  int caustic_k = 64;
+  float caustic_radius = 0.02f;
+  float caustic_volume_radius = 0.01f;
 };
+inline constexpr long long kDefaultCausticPhotons = 250000;
 
 class OptionMap;
 // Reads the matrix's --param keys (segment_samples, clamp_compensation) into `options`: the plan
@@ -46,7 +58,11 @@ struct MatrixCounters {
   uint64_t transmittance_evals = 0;  // visible connections attenuated through media (walks)
   double clamp_compensated = 0;      // luminance the clamp compensation added back
   uint64_t compensation_paths = 0;   // compensation samples that found a surface within the clamp
+  double caustic_gathered = 0;       // luminance the caustic photons added
+  uint64_t caustic_photons_used = 0; // photons that contributed to a row's estimate
   void Add(const MatrixCounters& o) {
+    caustic_gathered += o.caustic_gathered;
+    caustic_photons_used += o.caustic_photons_used;
     clamp_compensated += o.clamp_compensated;
     compensation_paths += o.compensation_paths;
     elements += o.elements;
@@ -96,6 +112,20 @@ class LightingMatrix {
   // eye-segment rows and when compensation is off. Deterministic in (job seed, row).
   bool compensates() const { return compensation_samples_ > 0 && clamp_distance_ > 0; }
   RGBAccum ClampCompensation(uint32_t row, MatrixCounters* counters) const;
+
+  // Light arriving at the end of caustic chains (L S+ D, L S+ M) that no column carries,
+  // gathered from caustic photons on surface rows and eye-segment rows (caustic_gather.cpp).
+  // The photons are traced on first use (deterministic in the job seed), once per matrix.
+  bool gathers_caustics() const { return caustic_photons_ > 0; }
+  long long caustic_photon_target() const { return caustic_photons_; }
+  RGBAccum CausticRadiance(uint32_t row, MatrixCounters* counters) const;
+  const CausticPhotonMap* caustic_map() const;
+
+  // What a row receives beyond its columns: the clamp's compensation and the caustics, in that
+  // order. Every driver adds it to a final-stage row sum (RunGatherTask) and the bench's
+  // reference rows, so they agree bit for bit.
+  bool has_extra_light() const { return compensates() || gathers_caustics(); }
+  RGBAccum ExtraLight(uint32_t row, MatrixCounters* counters) const;
 
   // Benchmarks only (bench/): appends every shadow ray handed to Embree to `rays` (not
   // thread-safe: record from one thread). nullptr stops recording.
@@ -169,8 +199,13 @@ class LightingMatrix {
   DiffuseLightArrays light_arrays_;
   float clamp_distance_ = 0, clamp_distance2_ = 0;
   int compensation_samples_ = 0;
-  uint64_t compensation_seed_ = 0;
+  uint64_t seed_ = 0;
   std::unique_ptr<PathTracer> compensation_tracer_;
+  long long caustic_photons_ = 0;
+  int caustic_k_ = 64;
+  float caustic_radius_ = 0, caustic_volume_radius_ = 0;
+  mutable std::once_flag caustic_once_;
+  mutable std::unique_ptr<CausticPhotonMap> caustic_map_;
   mutable std::vector<RTCRay>* recorded_rays_ = nullptr;
   int segment_samples_ = 4;
   int max_depth_ = 5;

@@ -169,6 +169,8 @@ class Scene {
   // True when the camera, a shape or a light uses a medium (a defined but unused medium is
   // not reachable by any path).
   bool has_media() const { return has_media_; }
+  // The Embree device, for acceleration structures of other primitives (caustic photons).
+  RTCDevice device() const { return device_; }
 
   // Emitted radiance of an area emitter leaving the surface at hit towards direction w.
   RGB EmittedRadiance(const SurfaceHit& hit, Vec3 w) const;

@@ -324,6 +324,23 @@ TEST(Metrics, HandComputedExample) {
   EXPECT_DOUBLE_EQ(m.rmse, std::sqrt(9.0 / 6.0));
 }
 
+TEST(Metrics, ExcludeAboveLeavesOutBrightReferencePixels) {
+  // A bright reference pixel (an emitter's) that the image misses dominates the error; left out,
+  // the rest is compared as if it were the whole image.
+  Image ref(3, 1), img(3, 1);
+  ref.at(0, 0) = img.at(0, 0) = RGB(1.f, 2.f, 2.f);
+  ref.at(1, 0) = RGB(100.f, 0.f, 0.f);
+  ref.at(2, 0) = RGB(0.f, 1.f, 0.f);
+  img.at(2, 0) = RGB(0.f, 0.5f, 0.f);
+  const ErrorMetrics all = CompareImages(ref, img);
+  EXPECT_EQ(all.excluded_bright, 0u);
+  EXPECT_GT(all.rel_l1, 0.9);
+  const ErrorMetrics m = CompareImages(ref, img, 50.f);
+  EXPECT_EQ(m.excluded_bright, 1u);
+  EXPECT_DOUBLE_EQ(m.rel_l1, 0.5 / 6.0);
+  EXPECT_DOUBLE_EQ(m.rmse, std::sqrt(0.25 / 6.0));
+}
+
 TEST(Metrics, RefusesWhatCannotBeCompared) {
   const Image a(4, 4, RGB(1.f)), b(4, 2, RGB(1.f));
   try {

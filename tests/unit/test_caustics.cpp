@@ -1,0 +1,170 @@
+// Caustics seen directly (common/lights/caustic_photons.h, common/matrix/caustic_gather.cpp):
+// light through a glass sphere onto a diffuse floor (L S+ D E) and into fog (L S+ M E) has no
+// connection a virtual light can make; the photons gathered on the rows bring it back, close to
+// what the path tracer finds, only where a scene has such paths, and with the same bits for any
+// thread count.
+#include <gtest/gtest.h>
+#include <tbb/global_control.h>
+
+#include <cstdio>
+#include <string>
+
+#include "common/farm/render_job.h"
+#include "tests/common/test_util.h"
+
+namespace lightfarm {
+namespace {
+
+using testing::TempDir;
+
+// A square light above a glass sphere above a diffuse floor, seen at an angle; `fog` fills a
+// box around them with a scattering medium the camera looks into.
+std::string SphereOverFloor(bool glass, bool fog) {
+  std::string s =
+      "Film \"rgb\" \"integer xresolution\" [40] \"integer yresolution\" [40]\nPixelFilter \"box\"\n"
+      "Integrator \"volpath\" \"integer maxdepth\" [5]\n"
+      "LookAt 0 3 3.5  0 0.3 0  0 1 0\nCamera \"perspective\" \"float fov\" [40]\n";
+  if (fog) s += "MakeNamedMedium \"fog\" \"string type\" \"homogeneous\" \"rgb sigma_a\" [0.05 0.05 0.05] "
+                "\"rgb sigma_s\" [0.4 0.4 0.4] \"float scale\" 1\n";
+  s += "WorldBegin\n";
+  if (fog) {
+    // The fog's box: an interface with the fog inside (its normals point out, the side
+    // MediumInterface calls exterior); the camera sits outside it.
+    s += "AttributeBegin\nMediumInterface \"fog\" \"\"\nMaterial \"interface\"\n"
+         "Shape \"trianglemesh\" \"point3 P\" [-2 0.001 -2  2 0.001 -2  2 0.001 2  -2 0.001 2  "
+         "-2 2.5 -2  2 2.5 -2  2 2.5 2  -2 2.5 2]\n"
+         "  \"integer indices\" [0 1 2 0 2 3  4 6 5 4 7 6  0 4 5 0 5 1  3 2 6 3 6 7  0 3 7 0 7 4  1 5 6 1 6 2]\n"
+         "AttributeEnd\n";
+    s += "AttributeBegin\nMediumInterface \"fog\" \"fog\"\n";
+  } else {
+    s += "AttributeBegin\n";
+  }
+  s += "AreaLightSource \"diffuse\" \"rgb L\" [30 30 30]\nMaterial \"diffuse\" \"rgb reflectance\" [0 0 0]\n"
+       "Shape \"trianglemesh\" \"point3 P\" [-0.4 2.4 -0.4  0.4 2.4 -0.4  0.4 2.4 0.4  -0.4 2.4 0.4]\n"
+       "  \"integer indices\" [0 1 2 0 2 3]\nAttributeEnd\n";
+  // The glass holds no fog.
+  if (fog) s += "AttributeBegin\nMediumInterface \"\" \"fog\"\n";
+  else s += "AttributeBegin\n";
+  s += glass ? "Material \"dielectric\" \"float eta\" 1.5\n" : "Material \"diffuse\" \"rgb reflectance\" [0.5 0.5 0.5]\n";
+  s += "Translate 0 0.9 0\nShape \"sphere\" \"float radius\" 0.45\nAttributeEnd\n";
+  s += "Material \"diffuse\" \"rgb reflectance\" [0.6 0.6 0.6]\n"
+       "Shape \"trianglemesh\" \"point3 P\" [-3 0 -3  3 0 -3  3 0 3  -3 0 3]\n"
+       "  \"integer indices\" [0 2 1 0 3 2]\n";
+  return s;
+}
+
+RenderOutput Render(const std::string& path, const std::string& method, int spp, std::vector<std::string> params = {},
+                    size_t lights = 3000) {
+  RenderSettings s;
+  s.method = method;
+  s.spp = spp;
+  s.lights = lights;
+  s.seed = 5;
+  s.params = std::move(params);
+  return RenderScene(path, s);
+}
+
+double Lum(const RGB& c) { return double(c.Luminance()); }
+
+// Mean luminance of `img` over the pixels of `mask`.
+double MaskedMean(const Image& img, const std::vector<uint8_t>& mask) {
+  double s = 0;
+  size_t n = 0;
+  for (size_t i = 0; i < img.pixels.size(); ++i)
+    if (mask[i]) s += Lum(img.pixels[i]), ++n;
+  return n ? s / double(n) : 0;
+}
+
+// The caustic's pixels: where the path tracer sees clearly more light than the virtual lights
+// alone carry.
+std::vector<uint8_t> CausticMask(const Image& truth, const Image& without) {
+  std::vector<uint8_t> mask(truth.pixels.size(), 0);
+  for (size_t i = 0; i < mask.size(); ++i) mask[i] = Lum(truth.pixels[i]) > 1.5 * Lum(without.pixels[i]) + 0.02;
+  return mask;
+}
+
+size_t Count(const std::vector<uint8_t>& mask) {
+  size_t n = 0;
+  for (uint8_t m : mask) n += m;
+  return n;
+}
+
+TEST(Caustics, GlassSphereCausticOnTheFloorMatchesThePathTracer) {
+  TempDir dir;
+  const std::string path = dir.Write("caustic.pbrt", SphereOverFloor(true, false));
+  const RenderOutput truth = Render(path, "path", 1024);
+  const RenderOutput without = Render(path, "brute", 4, {"caustic_photons=0"});
+  const RenderOutput with = Render(path, "brute", 4);
+  const std::vector<uint8_t> mask = CausticMask(truth.image, without.image);
+  ASSERT_GT(Count(mask), 20u) << "the scene must show a caustic";
+  const double t = MaskedMean(truth.image, mask), w = MaskedMean(with.image, mask),
+               wo = MaskedMean(without.image, mask);
+  // Without photons the caustic is missing; with them it is there, within the photon map's blur
+  // and both renders' noise.
+  std::printf("caustic region (%zu px): path %.4f, brute with caustics %.4f, without %.4f\n", Count(mask), t, w, wo);
+  EXPECT_LT(wo, 0.5 * t);
+  EXPECT_NEAR(w, t, 0.12 * t) << "path " << t << ", brute with caustics " << w << ", without " << wo;
+  // And the whole image agrees: nothing counted twice.
+  EXPECT_NEAR(MaskedMean(with.image, std::vector<uint8_t>(mask.size(), 1)),
+              MaskedMean(truth.image, std::vector<uint8_t>(mask.size(), 1)), 0.05 * t);
+  EXPECT_GT(with.stats["caustics"]["photons"].get<double>(), 0);
+  EXPECT_GT(with.stats["caustics"]["photons_used"].get<double>(), 0);
+  EXPECT_GT(with.stats["caustics"]["energy_fraction"].get<double>(), 0.01);
+}
+
+TEST(Caustics, BeamThroughFogMatchesThePathTracer) {
+  TempDir dir;
+  const std::string path = dir.Write("beam.pbrt", SphereOverFloor(true, true));
+  const RenderOutput truth = Render(path, "path", 1024);
+  // Few lights keep brute force over eye segments affordable; their own bias (a few percent
+  // here) cancels in the caustic's increment, which is what is compared.
+  const RenderOutput without = Render(path, "brute", 2, {"caustic_photons=0"}, 1000);
+  const RenderOutput with = Render(path, "brute", 2, {}, 1000);
+  const std::vector<uint8_t> mask = CausticMask(truth.image, without.image);
+  ASSERT_GT(Count(mask), 20u) << "the scene must show a caustic";
+  const double t = MaskedMean(truth.image, mask), w = MaskedMean(with.image, mask),
+               wo = MaskedMean(without.image, mask);
+  std::printf("beam region (%zu px): path %.4f, brute with caustics %.4f, without %.4f\n", Count(mask), t, w, wo);
+  EXPECT_LT(wo, 0.6 * t);
+  EXPECT_NEAR(w - wo, t - wo, 0.15 * (t - wo)) << "path " << t << ", brute with caustics " << w << ", without " << wo;
+  const std::vector<uint8_t> all(mask.size(), 1);
+  EXPECT_NEAR(MaskedMean(with.image, all) - MaskedMean(without.image, all),
+              MaskedMean(truth.image, all) - MaskedMean(without.image, all), 0.05 * t);
+  EXPECT_GT(with.stats["caustics"]["photons_used"].get<double>(), 0);
+}
+
+TEST(Caustics, OnlyWhereTheSceneHasThem) {
+  TempDir dir;
+  // A diffuse sphere: no delta lobe anywhere, so no photon is traced or gathered.
+  const RenderOutput diffuse = Render(dir.Write("diffuse.pbrt", SphereOverFloor(false, false)), "brute", 1);
+  EXPECT_EQ(diffuse.stats["caustics"]["photons"], 0);
+  EXPECT_EQ(diffuse.stats["caustics"]["photons_used"], 0);
+  EXPECT_EQ(diffuse.stats["caustics"]["energy_fraction"], 0.0);
+  // The path tracer finds caustics by itself.
+  const std::string glass = dir.Write("glass.pbrt", SphereOverFloor(true, false));
+  EXPECT_EQ(Render(glass, "path", 1).stats["caustics"]["photons"], 0);
+  EXPECT_GT(Render(glass, "lightcuts", 1).stats["caustics"]["photons_used"].get<double>(), 0);
+}
+
+TEST(Caustics, SameBitsForAnyThreadCountAndEveryMethodSeesThem) {
+  TempDir dir;
+  const std::string path = dir.Write("beam.pbrt", SphereOverFloor(true, true));
+  RenderOutput one, two;
+  {
+    tbb::global_control c(tbb::global_control::max_allowed_parallelism, 1);
+    one = Render(path, "brute", 1, {"caustic_photons=20000"}, 200);
+  }
+  {
+    tbb::global_control c(tbb::global_control::max_allowed_parallelism, 2);
+    two = Render(path, "brute", 1, {"caustic_photons=20000"}, 200);
+  }
+  EXPECT_TRUE(testing::SameBits(one.image, two.image));
+  EXPECT_GT(one.stats["caustics"]["photons_used"].get<double>(), 0);
+  // The photons are part of the light transport, not of a method: another method gathers the
+  // same ones on the same rows.
+  const RenderOutput ac = Render(path, "adaptive-completion", 1, {"caustic_photons=20000"}, 200);
+  EXPECT_EQ(ac.stats["caustics"]["photons_used"], one.stats["caustics"]["photons_used"]);
+}
+
+}  // namespace
+}  // namespace lightfarm
