@@ -262,14 +262,17 @@ std::shared_ptr<Worker::JobRuntime> Worker::Runtime(const v1::JobContext& job) {
   rt->receivers = DeserializeReceiverSet(ReadBytes(FetchBlob(job.receivers_sha256())));
   // `auto` resolves as the coordinator's plan did: from the scene's effects and requested lights.
   const OptionMap params = OptionMap::Parse(settings.params);
-  rt->method = CreateGatherMethod(
-      ResolveGatherMethodName(settings.method, ComputeEffects(*rt->scene), settings.lights, params),
-      params);
-  if (rt->method->needs_light_tree())
-    rt->tree = std::make_unique<LightTree>(LightTree::Build(rt->lights, settings.seed));
   MatrixOptions mopt;
   mopt.clamp = job.clamp();
   ReadMatrixParams(params, settings.seed, &mopt);  // as the plan does
+  rt->method = CreateGatherMethod(
+      ResolveGatherMethodName(settings.method, ComputeEffects(*rt->scene), settings.lights, params),
+      params);
+  // The sharp-lobe split as the plan made it (matrix methods only; a path tracer samples the
+  // scene's own BSDFs), after `auto` resolved on the scene's own effects.
+  if (!rt->method->renders_film()) rt->scene->SetSharpAlpha(SharpAlpha(mopt, settings.lights));
+  if (rt->method->needs_light_tree())
+    rt->tree = std::make_unique<LightTree>(LightTree::Build(rt->lights, settings.seed));
   rt->matrix = std::make_unique<LightingMatrix>(*rt->scene, rt->receivers, rt->lights, mopt);
   runtime_ = rt;
   return rt;

@@ -178,6 +178,8 @@ Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, Ph
                  plan.method->name());
   timer.End("build");
 
+  // The sharp-lobe split, before any BSDF is read (the workers do the same).
+  plan.scene->SetSharpAlpha(SharpAlpha(plan.matrix_options, settings.lights));
   std::unique_ptr<Filter> filter = MakePixelFilter(scene.hints());
   FilterSampler filter_sampler(*filter);
   ReceiverOptions ropt;
@@ -410,6 +412,11 @@ nlohmann::json MakeStats(const Plan& plan, const RenderSettings& settings,
                 {"compensation_paths", counters.compensation_paths}};
   // Caustics gathered from photons (caustic_photons.h): zero unless the scene has delta lobes
   // on light paths (or --param caustic_photons asks for them).
+  // The sharp-lobe split (docs/rendering.md): its threshold and the materials it made sharp.
+  size_t sharp_materials = 0;
+  for (const Material& m : plan.scene->materials()) sharp_materials += HasSharpLobe(m);
+  s["sharp"] = {{"alpha", plan.method->renders_film() ? 0.0 : double(SharpAlpha(plan.matrix_options, settings.lights))},
+                {"materials", sharp_materials}};
   s["caustics"] = {{"photons", plan.matrix->caustic_photon_target()},
                    {"photons_used", counters.caustic_photons_used},
                    {"energy_fraction", total_lum > 0 ? counters.caustic_gathered / total_lum : 0.0}};

@@ -214,14 +214,14 @@ LobeBound MaterialLobeBound(const Material& m, Vec3 wo, TransportMode mode) {
       float f0 = FrDielectric(1.f, eta);
       float e_normal = IsSmoothMaterial(m) ? f0 : std::min(0.5f, 4 * f0 + 0.02f);
       b.diffuse_front = at_normal * ((1 + 1e-3f) / (1 - e_normal));
-      if (!IsSmoothMaterial(m)) set_glossy();
+      if (!ActsAsDelta(m)) set_glossy();  // a sharp coat is sampled, not gathered
       break;
     }
     case MaterialType::kConductor:
-      if (!IsSmoothMaterial(m)) set_glossy();
+      if (!ActsAsDelta(m)) set_glossy();
       break;
     case MaterialType::kDielectric:
-      if (m.eta.r != 1.f && !IsSmoothMaterial(m)) {
+      if (m.eta.r != 1.f && !ActsAsDelta(m)) {
         set_glossy();
         b.back_unbounded = true;
       }

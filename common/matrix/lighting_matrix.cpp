@@ -184,6 +184,16 @@ void ReadMatrixParams(const OptionMap& params, uint64_t seed, MatrixOptions* opt
   options->caustic_k = int(params.GetInt("caustic_k", 64, 1, 4096));
   options->caustic_radius = float(params.GetDouble("caustic_radius", 0.02, 1e-6, 1.0));
   options->caustic_volume_radius = float(params.GetDouble("caustic_volume_radius", 0.01, 1e-6, 1.0));
+  options->sharp_roughness = params.Has("sharp_roughness") ? float(params.GetDouble("sharp_roughness", 0, 0, 1)) : -1.f;
+}
+
+float SharpAlpha(const MatrixOptions& options, size_t lights) {
+  if (options.sharp_roughness >= 0) return options.sharp_roughness;
+  // A Trowbridge-Reitz lobe of roughness α reflects into a cone of half-angle ≈ 2α, a solid
+  // angle ≈ 4πα²; N lights spread over a hemisphere put 2Nα² of them in it. Below ~40 the
+  // columns of glossy VPLs are too spiky for the sampling methods (docs/sharp-lobes.md
+  // measures where): α_sharp = √(40 / 2N) = √(20/N).
+  return std::min(0.3f, std::sqrt(20.f / float(std::max<size_t>(lights, 1))));
 }
 
 LightingMatrix::LightingMatrix(const Scene& scene, const ReceiverSet& receivers,

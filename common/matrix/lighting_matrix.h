@@ -41,7 +41,15 @@ struct MatrixOptions {
   int caustic_k = 64;
   float caustic_radius = 0.02f;
   float caustic_volume_radius = 0.01f;
+  // The sharp-lobe split (Material::sharp_alpha): glossy lobes rougher than this are gathered
+  // by the columns, smoother ones are sampled like delta lobes; -1 for the default tied to the
+  // light count (SharpAlpha).
+  float sharp_roughness = -1;
 };
+// The sharp-lobe threshold a render uses (docs/rendering.md, "Sharp lobes"): the option when
+// given, else √(20/N) for N virtual lights (a lobe that sees fewer than ~40 of them makes
+// spiky columns), at most 0.3. The plan and every worker set it on their scene before anything reads a BSDF.
+float SharpAlpha(const MatrixOptions& options, size_t lights);
 inline constexpr long long kDefaultCausticPhotons = 250000;
 
 class OptionMap;

@@ -2,6 +2,9 @@
 
 #include <tbb/parallel_for.h>
 
+#include <embree3/rtcore.h>
+
+#include "common/lights/emitters.h"
 #include "common/util/rng.h"
 #include "common/util/sampling.h"
 
@@ -60,14 +63,67 @@ void AddEyeSegments(const Medium& med, int medium, const Ray& ray, float tmax, R
   }
 }
 
+// Veach's power heuristic (β = 2).
+float PowerHeuristic(float a, float b) {
+  const float a2 = a * a, b2 = b * b;
+  if (std::isinf(a2)) return 1.f;
+  return a2 + b2 > 0 ? a2 / (a2 + b2) : 0.f;
+}
+
+// Next-event estimation for the sharp lobe of the vertex at `hit` (docs/rendering.md, "Sharp
+// lobes"), the sample combined by MIS with the lobe's own: the light arriving through the lobe,
+// given that the camera path chose the lobe (with probability p_lobe).
+RGB SharpLobeDirectLight(const Scene& scene, const EmitterSampler& lights, const SurfaceHit& hit,
+                         const Material& m, const Frame& frame, Vec3 wo_local, float p_lobe, int medium,
+                         Rng& rng) {
+  const float u_pick = rng.Uniform();
+  const Vec2 u{rng.Uniform(), rng.Uniform()};
+  const std::optional<LightSample> ls = lights.Sample(hit.p, u_pick, u);
+  if (!ls || !(p_lobe > 0)) return RGB(0.f);
+  const Vec3 wi_local = frame.ToLocal(ls->wi);
+  const RGB f = EvalSharpLobe(m, wo_local, wi_local, TransportMode::kRadiance) * std::abs(wi_local.z);
+  if (f.IsBlack()) return RGB(0.f);
+  const Vec3 o = OffsetRayOrigin(hit.p, hit.ng, ls->wi);
+  Vec3 dir = ls->wi;
+  float tfar = kInfinity;
+  if (!ls->infinite_distance) {
+    const Vec3 target = ls->area ? OffsetRayOrigin(ls->p_light, ls->n_light, -ls->wi) : ls->p_light;
+    dir = target - o;
+    tfar = 1.f - 1e-4f;
+  }
+  if (!IsFinite(o) || !IsFinite(dir)) return RGB(0.f);
+  RTCRay ray{};
+  ray.org_x = o.x; ray.org_y = o.y; ray.org_z = o.z;
+  ray.dir_x = dir.x; ray.dir_y = dir.y; ray.dir_z = dir.z;
+  ray.tfar = tfar;
+  ray.mask = kMaskOpaque;
+  scene.Occluded(&ray, 1);
+  if (!(ray.tfar >= 0.f)) return RGB(0.f);
+  RGB tr(1.f);
+  if (scene.has_media()) {
+    const int start = scene.MediumAfter(hit, ls->wi, medium);
+    tr = ls->infinite_distance ? scene.TransmittanceAlong(o, ls->wi, kInfinity, start, rng)
+                               : scene.Transmittance(o, o + dir * tfar, start, rng);
+  }
+  const float w = ls->delta ? 1.f : PowerHeuristic(ls->pdf, PdfSharpLobe(m, wo_local, wi_local) / p_lobe);
+  return f * ls->L * tr * (w / (ls->pdf * p_lobe));
+}
+
 // Follows a camera ray through specular (delta) interactions to its first non-specular vertex,
-// collecting the emission seen along the way.
-PathEnd TraceCameraPath(const Scene& scene, Ray ray, int max_depth, int segments_per_ray,
-                        Rng& rng) {
+// collecting the emission seen along the way. `lights` (set when the scene has sharp lobes):
+// at a vertex that follows a sharp lobe, emission is estimated by MIS of the lobe's sample
+// and an emitter sample.
+PathEnd TraceCameraPath(const Scene& scene, const EmitterSampler* lights, Ray ray, int max_depth,
+                        int segments_per_ray, Rng& rng) {
   PathEnd end;
   RGB beta(1.f);
   int depth = 0, passthrough = 0;
   int medium = scene.camera_medium();
+  // After a sharp-lobe sample: its density (the lobe's, given the lobe) and where it left from,
+  // for the MIS weight of an emitter the ray finds.
+  bool after_sharp = false;
+  float sharp_pdf = 0;
+  Vec3 sharp_p;
   for (;;) {
     SurfaceHit hit;
     bool found = scene.Intersect(ray, &hit);
@@ -82,12 +138,25 @@ PathEnd TraceCameraPath(const Scene& scene, Ray ray, int max_depth, int segments
       if (beta.IsBlack()) return end;
     }
     if (!found) {
-      end.emitted += beta * scene.EnvironmentRadiance(ray.d);
+      if (!after_sharp) {
+        end.emitted += beta * scene.EnvironmentRadiance(ray.d);
+      } else {
+        for (uint32_t i = 0; i < scene.infinite_emitters().size(); ++i)
+          end.emitted += beta * scene.infinite_emitters()[i].Le(ray.d) *
+                         PowerHeuristic(sharp_pdf, lights->PdfInfinite(i, ray.d));
+      }
       end.escaped = true;
       return end;
     }
     Vec3 wo = -ray.d;
-    end.emitted += beta * scene.EmittedRadiance(hit, wo);
+    {
+      const RGB Le = scene.EmittedRadiance(hit, wo);
+      if (!Le.IsBlack()) {
+        const int e = scene.shapes()[hit.shape].area_emitter;
+        const float w = after_sharp && e >= 0 ? PowerHeuristic(sharp_pdf, lights->PdfArea(uint32_t(e), sharp_p, hit)) : 1.f;
+        end.emitted += beta * Le * w;
+      }
+    }
     const Shape& shape = scene.shapes()[hit.shape];
     const Material& m = scene.materials()[shape.material];
     uint32_t flags = MaterialFlags(m);
@@ -97,6 +166,7 @@ PathEnd TraceCameraPath(const Scene& scene, Ray ray, int max_depth, int segments
       ray.o = OffsetRayOrigin(hit.p, hit.ng, ray.d);
       continue;
     }
+    after_sharp = false;
     if (++depth > max_depth) return end;
     Frame frame(hit.ns);
     Vec3 wo_local = frame.ToLocal(wo);
@@ -126,6 +196,14 @@ PathEnd TraceCameraPath(const Scene& scene, Ray ray, int max_depth, int segments
     auto bs = SampleBSDF(m, wo_local, uc, {rng.Uniform(), rng.Uniform()}, TransportMode::kRadiance);
     if (!bs || !(bs->pdf > 0) || !bs->IsSpecular()) return end;
     Vec3 wi = frame.FromLocal(bs->wi);
+    if (lights && HasSharpLobe(m)) {
+      // A sharp lobe is not a delta: emitters it reflects get an emitter sample too (MIS).
+      const float p_lobe = std::max(p_specular, 1e-6f);
+      end.emitted += beta * SharpLobeDirectLight(scene, *lights, hit, m, frame, wo_local, p_lobe, medium, rng);
+      after_sharp = true;
+      sharp_pdf = bs->pdf / p_lobe;
+      sharp_p = hit.p;
+    }
     beta *= bs->f * (std::abs(bs->wi.z) / bs->pdf);
     if (beta.IsBlack() || !beta.IsFinite()) return end;
     ++end.specular_bounces;
@@ -158,6 +236,14 @@ ReceiverSet GenerateReceivers(const Scene& scene, const FilterSampler& filter,
   std::vector<uint8_t> has_point(npix * spp, 0);
   std::vector<std::vector<EyeSegment>> segments(npix * spp);
   std::vector<ReceiverStats> row_stats(set.height);
+  // Emitter sampling at sharp-lobe vertices, only when the split made a lobe sharp.
+  std::unique_ptr<EmitterSampler> sharp_lights;
+  for (const Material& m : scene.materials())
+    if (HasSharpLobe(m)) {
+      sharp_lights = std::make_unique<EmitterSampler>(scene);
+      break;
+    }
+  if (sharp_lights && sharp_lights->empty()) sharp_lights.reset();
 
   tbb::parallel_for(0, set.height, [&](int y) {
     ReceiverStats& st = row_stats[y];
@@ -181,7 +267,7 @@ ReceiverSet GenerateReceivers(const Scene& scene, const FilterSampler& filter,
           ++st.nonfinite_rays;
           continue;
         }
-        PathEnd end = TraceCameraPath(scene, ray, opt.max_depth, opt.segments_per_ray, rng);
+        PathEnd end = TraceCameraPath(scene, sharp_lights.get(), ray, opt.max_depth, opt.segments_per_ray, rng);
         for (EyeSegment& seg : end.segments) seg.sample = uint32_t(index);
         segments[index] = std::move(end.segments);
         cs.emitted = end.emitted;

@@ -27,6 +27,14 @@ bool IsSmooth(const Material& m) {
   return std::max(m.alpha_x, m.alpha_y) < kEffectivelySmoothAlpha;
 }
 
+// A glossy lobe the many-light split samples as a delta lobe (Material::sharp_alpha).
+bool IsSharp(const Material& m) {
+  return !IsSmooth(m) && std::max(m.alpha_x, m.alpha_y) < m.sharp_alpha;
+}
+
+// The flags of a sample from the material's microfacet lobe.
+uint32_t MicrofacetLobe(const Material& m) { return IsSharp(m) ? kBxDFSpecular : kBxDFGlossy; }
+
 // ---------------------------------------------------------------------------------------
 // Diffuse (Lambertian, two-sided)
 
@@ -70,7 +78,8 @@ RGB ConductorFresnel(const Material& m, float cos_i) {
   return f;
 }
 
-RGB EvalConductor(const Material& m, Vec3 wo, Vec3 wi) {
+// The microfacet lobe itself, sharp or not.
+RGB ConductorLobe(const Material& m, Vec3 wo, Vec3 wi) {
   if (IsSmooth(m) || !SameHemisphere(wo, wi)) return RGB(0.f);
   // Work in the hemisphere of wo
   if (wo.z < 0) {
@@ -87,7 +96,7 @@ RGB EvalConductor(const Material& m, Vec3 wo, Vec3 wi) {
   return ConductorFresnel(m, AbsDot(wo, wm)) * dg;
 }
 
-float PdfConductor(const Material& m, Vec3 wo, Vec3 wi) {
+float ConductorLobePdf(const Material& m, Vec3 wo, Vec3 wi) {
   if (IsSmooth(m) || !SameHemisphere(wo, wi)) return 0.f;
   if (wo.z < 0) {
     wo = -wo;
@@ -101,6 +110,11 @@ float PdfConductor(const Material& m, Vec3 wo, Vec3 wi) {
   float pdf = distrib.VisibleD(wo, wm) / (4 * AbsDot(wo, wm));
   return std::isfinite(pdf) ? pdf : 0.f;
 }
+
+RGB EvalConductor(const Material& m, Vec3 wo, Vec3 wi) {
+  return IsSharp(m) ? RGB(0.f) : ConductorLobe(m, wo, wi);
+}
+float PdfConductor(const Material& m, Vec3 wo, Vec3 wi) { return IsSharp(m) ? 0.f : ConductorLobePdf(m, wo, wi); }
 
 std::optional<BSDFSample> SampleConductor(const Material& m, Vec3 wo, Vec2 u) {
   if (wo.z == 0) return std::nullopt;
@@ -122,10 +136,10 @@ std::optional<BSDFSample> SampleConductor(const Material& m, Vec3 wo, Vec2 u) {
   Vec3 wi = Reflect(wo_up, wm);
   if (wi.z <= 0) return std::nullopt;
   s.wi = wi * side;
-  s.f = EvalConductor(m, wo, s.wi);
-  s.pdf = PdfConductor(m, wo, s.wi);
+  s.f = ConductorLobe(m, wo, s.wi);
+  s.pdf = ConductorLobePdf(m, wo, s.wi);
   if (s.pdf == 0) return std::nullopt;
-  s.flags = kBxDFReflection | kBxDFGlossy;
+  s.flags = kBxDFReflection | MicrofacetLobe(m);
   return s;
 }
 
@@ -151,7 +165,7 @@ bool DielectricHalfVector(float eta, Vec3 wo, Vec3 wi, Vec3* wm, float* etap) {
   return true;
 }
 
-RGB EvalDielectric(const Material& m, Vec3 wo, Vec3 wi, TransportMode mode) {
+RGB DielectricLobe(const Material& m, Vec3 wo, Vec3 wi, TransportMode mode) {
   float eta = m.eta.r;
   if (DielectricIsPassThrough(m) || IsSmooth(m)) return RGB(0.f);
   Vec3 wm;
@@ -173,7 +187,7 @@ RGB EvalDielectric(const Material& m, Vec3 wo, Vec3 wi, TransportMode mode) {
   return std::isfinite(f) ? RGB(f) : RGB(0.f);
 }
 
-float PdfDielectric(const Material& m, Vec3 wo, Vec3 wi) {
+float DielectricLobePdf(const Material& m, Vec3 wo, Vec3 wi) {
   float eta = m.eta.r;
   if (DielectricIsPassThrough(m) || IsSmooth(m)) return 0.f;
   Vec3 wm;
@@ -191,6 +205,11 @@ float PdfDielectric(const Material& m, Vec3 wo, Vec3 wi) {
   }
   return std::isfinite(pdf) ? pdf : 0.f;
 }
+
+RGB EvalDielectric(const Material& m, Vec3 wo, Vec3 wi, TransportMode mode) {
+  return IsSharp(m) ? RGB(0.f) : DielectricLobe(m, wo, wi, mode);
+}
+float PdfDielectric(const Material& m, Vec3 wo, Vec3 wi) { return IsSharp(m) ? 0.f : DielectricLobePdf(m, wo, wi); }
 
 std::optional<BSDFSample> SampleDielectric(const Material& m, Vec3 wo, float uc, Vec2 u,
                                            TransportMode mode) {
@@ -229,17 +248,17 @@ std::optional<BSDFSample> SampleDielectric(const Material& m, Vec3 wo, float uc,
   if (uc < r) {
     wi = Reflect(wo, wm);
     if (!SameHemisphere(wo, wi)) return std::nullopt;
-    s.flags = kBxDFReflection | kBxDFGlossy;
+    s.flags = kBxDFReflection | MicrofacetLobe(m);
   } else {
     if (!Refract(wo, wm, eta, &etap, &wi) || wi.z == 0 || SameHemisphere(wo, wi))
       return std::nullopt;
-    s.flags = kBxDFTransmission | kBxDFGlossy;
+    s.flags = kBxDFTransmission | MicrofacetLobe(m);
     s.eta = etap;
   }
   // f and pdf from the same expressions Eval/Pdf use, so MIS weights agree exactly
   s.wi = wi;
-  s.f = EvalDielectric(m, wo, wi, mode);
-  s.pdf = PdfDielectric(m, wo, wi);
+  s.f = DielectricLobe(m, wo, wi, mode);
+  s.pdf = DielectricLobePdf(m, wo, wi);
   if (s.pdf == 0) return std::nullopt;
   return s;
 }
@@ -523,7 +542,7 @@ RGB EvalCoatedDiffuse(const Material& m, Vec3 wo, Vec3 wi) {
     wi = -wi;
   }
   RGB f = EvalCoatedBase(m, wo, wi);
-  if (!IsSmooth(m)) f += RGB(EvalCoatGlossy(m, wo, wi));
+  if (!ActsAsDelta(m)) f += RGB(EvalCoatGlossy(m, wo, wi));
   return f;
 }
 
@@ -535,7 +554,7 @@ float PdfCoatedDiffuse(const Material& m, Vec3 wo, Vec3 wi) {
   }
   float p_coat = CoatSamplingProbability(m, wo);
   float pdf = (1 - p_coat) * CosineHemispherePdf(wi.z);
-  if (!IsSmooth(m)) pdf += p_coat * PdfCoatGlossy(m, wo, wi);
+  if (!ActsAsDelta(m)) pdf += p_coat * PdfCoatGlossy(m, wo, wi);
   return pdf;
 }
 
@@ -558,14 +577,23 @@ std::optional<BSDFSample> SampleCoatedDiffuse(const Material& m, Vec3 wo, float 
   if (uc < p_coat) {
     TrowbridgeReitz distrib(m.alpha_x, m.alpha_y);
     wi = Reflect(wo_up, distrib.SampleVisibleNormal(wo_up, u));
-    s.flags = kBxDFReflection | kBxDFGlossy;
+    s.flags = kBxDFReflection | MicrofacetLobe(m);
+    if (IsSharp(m)) {
+      // The sharp coat alone, chosen with probability p_coat (the base is the rows' part).
+      if (wi.z <= 0) return std::nullopt;
+      s.wi = wi * side;
+      s.f = RGB(EvalCoatGlossy(m, wo_up, wi));
+      s.pdf = p_coat * PdfCoatGlossy(m, wo_up, wi);
+      if (s.pdf == 0) return std::nullopt;
+      return s;
+    }
   } else {
     wi = SampleCosineHemisphere(u);
     s.flags = kBxDFReflection | kBxDFDiffuse;
   }
   if (wi.z <= 0) return std::nullopt;
   s.wi = wi * side;
-  if (IsSmooth(m)) {
+  if (ActsAsDelta(m)) {
     // Only the base is non-delta: f and pdf of the diffuse lobe alone
     s.f = EvalCoatedBase(m, wo_up, wi);
     s.pdf = (1 - p_coat) * CosineHemispherePdf(wi.z);
@@ -635,8 +663,51 @@ void ReadRoughness(const MaterialDesc& desc, Material* m) {
 
 float RoughnessToAlpha(float roughness) { return std::sqrt(std::max(0.f, roughness)); }
 
+bool ActsAsDelta(const Material& m) { return IsSmooth(m) || IsSharp(m); }
+
+bool HasSharpLobe(const Material& m) {
+  const bool microfacet = m.type == MaterialType::kConductor || m.type == MaterialType::kCoatedDiffuse ||
+                          (m.type == MaterialType::kDielectric && !DielectricIsPassThrough(m));
+  return microfacet && IsSharp(m);
+}
+
+RGB EvalSharpLobe(const Material& m, Vec3 wo, Vec3 wi, TransportMode mode) {
+  if (!HasSharpLobe(m) || wo.z == 0 || wi.z == 0) return RGB(0.f);
+  switch (m.type) {
+    case MaterialType::kConductor:
+      return ConductorLobe(m, wo, wi);
+    case MaterialType::kDielectric:
+      return DielectricLobe(m, wo, wi, mode);
+    case MaterialType::kCoatedDiffuse:
+      if (!SameHemisphere(wo, wi)) return RGB(0.f);
+      return wo.z < 0 ? RGB(EvalCoatGlossy(m, -wo, -wi)) : RGB(EvalCoatGlossy(m, wo, wi));
+    default:
+      return RGB(0.f);
+  }
+}
+
+float PdfSharpLobe(const Material& m, Vec3 wo, Vec3 wi) {
+  if (!HasSharpLobe(m) || wo.z == 0 || wi.z == 0) return 0.f;
+  switch (m.type) {
+    case MaterialType::kConductor:
+      return ConductorLobePdf(m, wo, wi);
+    case MaterialType::kDielectric:
+      return DielectricLobePdf(m, wo, wi);
+    case MaterialType::kCoatedDiffuse: {
+      if (!SameHemisphere(wo, wi)) return 0.f;
+      if (wo.z < 0) {
+        wo = -wo;
+        wi = -wi;
+      }
+      return CoatSamplingProbability(m, wo) * PdfCoatGlossy(m, wo, wi);
+    }
+    default:
+      return 0.f;
+  }
+}
+
 uint32_t MaterialFlags(const Material& m) {
-  uint32_t rough = IsSmooth(m) ? kBxDFSpecular : kBxDFGlossy;
+  uint32_t rough = ActsAsDelta(m) ? kBxDFSpecular : kBxDFGlossy;
   switch (m.type) {
     case MaterialType::kDiffuse:
       // Also for black reflectance: the surface is still opaque (flags 0 means "pass through")

@@ -48,6 +48,10 @@ struct Material {
   float alpha_x = 0, alpha_y = 0;           // Trowbridge-Reitz roughness (after remapping)
   float thickness = 0.01f;  // coateddiffuse layer thickness (attenuation of the diffuse base)
   RGB coat_albedo{0.f};     // coateddiffuse medium albedo (only 0 supported exactly; see .cpp)
+  // The many-light split (docs/rendering.md, "Sharp lobes"): a glossy lobe whose roughness
+  // max(alpha_x, alpha_y) is below this is a *sharp* lobe, sampled as a delta lobe is (flagged
+  // kBxDFSpecular, with its true f and pdf) and never evaluated by EvalBSDF / PdfBSDF. 0: none.
+  float sharp_alpha = 0;
   std::string name;         // for messages
 };
 
@@ -85,6 +89,17 @@ std::optional<BSDFSample> SampleBSDF(const Material& m, Vec3 wo, float uc, Vec2 
 // follow the mirror lobe with this probability and become receivers otherwise). 1 for purely
 // specular materials, 0 for materials without a delta lobe.
 float SpecularSamplingProbability(const Material& m, Vec3 wo);
+
+// Whether the material's glossy lobe (if any) behaves as a delta lobe: perfectly smooth, or
+// sharp under the many-light split (Material::sharp_alpha).
+bool ActsAsDelta(const Material& m);
+// Whether the material has a glossy lobe the split made sharp.
+bool HasSharpLobe(const Material& m);
+// The sharp lobe alone, as SampleBSDF samples it: its f, and its pdf including the probability
+// of choosing it (SpecularSamplingProbability); zero unless HasSharpLobe. For next-event
+// estimation at a sharp vertex and the MIS weights of both strategies there.
+RGB EvalSharpLobe(const Material& m, Vec3 wo, Vec3 wi, TransportMode mode);
+float PdfSharpLobe(const Material& m, Vec3 wo, Vec3 wi);
 
 // Trowbridge-Reitz alpha from pbrt's "roughness" (remaproughness true): alpha = sqrt(r).
 float RoughnessToAlpha(float roughness);

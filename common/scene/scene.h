@@ -159,6 +159,11 @@ class Scene {
 
   const std::vector<Shape>& shapes() const { return shapes_; }
   const std::vector<Material>& materials() const { return materials_; }
+  // The many-light split of every material's lobes (Material::sharp_alpha): set once by the
+  // plan, before receivers or lights are generated, and identically on every worker.
+  void SetSharpAlpha(float alpha) {
+    for (Material& m : materials_) m.sharp_alpha = alpha;
+  }
   const std::vector<AreaEmitter>& area_emitters() const { return area_emitters_; }
   const std::vector<PointEmitter>& point_emitters() const { return point_emitters_; }
   const std::vector<DistantEmitter>& distant_emitters() const { return distant_emitters_; }

@@ -11,6 +11,8 @@
 
 #include "common/farm/render_job.h"
 #include "coordinator/embedded_farm.h"
+#include "tests/common/caustic_scene.h"
+#include "tests/common/glossy_scene.h"
 #include "tests/integration/farm_harness.h"
 
 namespace lightfarm {
@@ -149,6 +151,66 @@ TEST(Farm, MediaSceneOnWorkerProcessesMatchesTheDirectRenderBitForBit) {
   EXPECT_GT(stats["matrix"]["transmittance_evals"].get<double>(), 0);
   const auto effects = stats["effects"].get<std::vector<std::string>>();
   EXPECT_NE(std::find(effects.begin(), effects.end(), "media"), effects.end());
+}
+
+// Caustic photons on worker processes: every worker traces the same photons from the job seed
+// and gathers them on its rows (surfaces and eye segments), so the farm gives the direct
+// render's bits.
+TEST(Farm, CausticsOnWorkerProcessesMatchTheDirectRenderBitForBit) {
+  TempDir dir;
+  const std::string scene = dir.Write("beam.pbrt", SphereOverFloor(true, true));
+  const std::vector<std::string> args = {"--method", "brute", "--resolution", "20x20", "--lights", "150",
+                                         "--seed", "3", "--param", "caustic_photons=20000"};
+  RenderSettings s;
+  s.method = "brute";
+  s.width = s.height = 20;
+  s.lights = 150;
+  s.seed = 3;
+  s.params = {"caustic_photons=20000"};
+  const RenderOutput direct = RenderScene(scene, s);
+  ASSERT_GT(direct.stats["caustics"]["photons_used"].get<double>(), 0);
+
+  CoordinatorProcess coordinator(dir, dir.Path("state"), {});
+  auto w1 = StartWorker(dir, coordinator.address());
+  auto w2 = StartWorker(dir, coordinator.address());
+  CliResult submit = RunCli(dir, Concat({"submit", scene, "--server", coordinator.address(), "--wait", "--quiet",
+                                         "--out", dir.Path("beam.exr")},
+                                        args));
+  ASSERT_EQ(submit.exit_code, 0) << submit.err;
+  EXPECT_TRUE(SameBits(ReadImage(dir.Path("beam.exr")), direct.image));
+  nlohmann::json stats = nlohmann::json::parse(Slurp(dir.Path("beam.json")));
+  EXPECT_EQ(stats["caustics"]["photons_used"], direct.stats["caustics"]["photons_used"]);
+  EXPECT_EQ(stats["caustics"]["photons"], 20000);
+}
+
+// The sharp-lobe split on worker processes: each worker splits its scene's BSDFs as the plan
+// did (the receivers and lights it receives were made with the split), so the farm gives the
+// direct render's bits.
+TEST(Farm, SharpLobesOnWorkerProcessesMatchTheDirectRenderBitForBit) {
+  TempDir dir;
+  const std::string scene = dir.Write("glossy.pbrt", GlossyPlane(0.02f));
+  const std::vector<std::string> args = {"--method", "lightcuts", "--resolution", "24x16", "--lights", "300",
+                                         "--seed", "4", "--param", "caustic_photons=20000"};
+  RenderSettings s;
+  s.method = "lightcuts";
+  s.width = 24;
+  s.height = 16;
+  s.lights = 300;
+  s.seed = 4;
+  s.params = {"caustic_photons=20000"};
+  const RenderOutput direct = RenderScene(scene, s);
+  ASSERT_EQ(direct.stats["sharp"]["materials"], 1);
+
+  CoordinatorProcess coordinator(dir, dir.Path("state"), {});
+  auto w1 = StartWorker(dir, coordinator.address());
+  auto w2 = StartWorker(dir, coordinator.address());
+  CliResult submit = RunCli(dir, Concat({"submit", scene, "--server", coordinator.address(), "--wait", "--quiet",
+                                         "--out", dir.Path("glossy.exr")},
+                                        args));
+  ASSERT_EQ(submit.exit_code, 0) << submit.err;
+  EXPECT_TRUE(SameBits(ReadImage(dir.Path("glossy.exr")), direct.image));
+  nlohmann::json stats = nlohmann::json::parse(Slurp(dir.Path("glossy.json")));
+  EXPECT_EQ(stats["sharp"], direct.stats["sharp"]);
 }
 
 // The path tracer on worker processes: tiles × sample passes, the passes of a pixel summed in

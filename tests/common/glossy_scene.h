@@ -1,0 +1,32 @@
+// scenes/glossy-plane (a near-specular plane reflecting a small area light in front of a
+// diffuse backdrop) with the plane's Trowbridge-Reitz roughness set to `alpha`, for the
+// sharp-lobe tests (tests/scenes/test_sharp_lobes.cpp, the farm tests); 48×32 pixels, box
+// filter. Regions of the image: the light's reflection (blob), the backdrop and the plane
+// around the reflection.
+#pragma once
+
+#include <fstream>
+#include <iterator>
+#include <stdexcept>
+#include <string>
+
+#include "tests/common/test_util.h"
+
+namespace lightfarm::testing {
+
+inline std::string GlossyPlane(float alpha) {
+  std::ifstream in(SourcePath("scenes/glossy-plane/scene.pbrt"));
+  std::string s((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string key = "\"float roughness\" 0.02";
+  const size_t at = s.find(key);
+  if (at == std::string::npos) throw std::runtime_error("scenes/glossy-plane/scene.pbrt: no roughness to set");
+  return s.replace(at, key.size(), "\"float roughness\" " + std::to_string(alpha));
+}
+
+// Pixel rectangles [x0, x0 + w) × [y0, y0 + h) of GlossyPlane's image.
+struct PixelRect {
+  int x0, y0, w, h;
+};
+inline constexpr PixelRect kGlossyBlob{16, 24, 16, 8}, kGlossyBackdrop{0, 4, 48, 10}, kGlossyPlane{0, 16, 48, 6};
+
+}  // namespace lightfarm::testing
