@@ -115,6 +115,25 @@ TEST(Farm, EveryMethodOnTheEmbeddedFarmMatchesTheDirectRender) {
   }
 }
 
+// Renders `scene` on a coordinator process with two worker processes (`lightfarm submit --wait`
+// with `args`, written as NAME.exr and NAME.json in `dir`): the farm's image and stats.
+struct FarmRender {
+  Image image;
+  nlohmann::json stats;
+};
+FarmRender SubmitToTwoWorkers(TempDir& dir, const std::string& scene, const std::string& name,
+                              const std::vector<std::string>& args) {
+  CoordinatorProcess coordinator(dir, dir.Path("state-" + name), {});
+  auto w1 = StartWorker(dir, coordinator.address());
+  auto w2 = StartWorker(dir, coordinator.address());
+  CliResult submit = RunCli(dir, Concat({"submit", scene, "--server", coordinator.address(), "--wait", "--quiet",
+                                         "--out", dir.Path(name + ".exr")},
+                                        args));
+  EXPECT_EQ(submit.exit_code, 0) << submit.err;
+  if (submit.exit_code != 0) return {};
+  return {ReadImage(dir.Path(name + ".exr")), nlohmann::json::parse(Slurp(dir.Path(name + ".json")))};
+}
+
 // A media scene through the whole pipeline on real processes: the cloud (NanoVDB density, VRLs,
 // eye segments partitioned by METIS on the coordinator) gathered by adaptive-completion on two
 // worker processes gives the direct render's bits, and its stats show the media work.
@@ -132,17 +151,10 @@ TEST(Farm, MediaSceneOnWorkerProcessesMatchesTheDirectRenderBitForBit) {
   ASSERT_GT(direct.stats["receivers"]["segments"].get<double>(), 0);
 
   TempDir dir;
-  CoordinatorProcess coordinator(dir, dir.Path("state"), {});
-  auto w1 = StartWorker(dir, coordinator.address());
-  auto w2 = StartWorker(dir, coordinator.address());
-  CliResult submit = RunCli(dir, Concat({"submit", cloud, "--server", coordinator.address(), "--wait", "--quiet",
-                                         "--out", dir.Path("cloud.exr")},
-                                        args));
-  ASSERT_EQ(submit.exit_code, 0) << submit.err;
-  const Image farm = ReadImage(dir.Path("cloud.exr"));
-  EXPECT_TRUE(SameBits(farm, direct.image));
-  EXPECT_GT(farm.MeanLuminance(), 0.0);
-  nlohmann::json stats = nlohmann::json::parse(Slurp(dir.Path("cloud.json")));
+  const FarmRender farm = SubmitToTwoWorkers(dir, cloud, "cloud", args);
+  EXPECT_TRUE(SameBits(farm.image, direct.image));
+  EXPECT_GT(farm.image.MeanLuminance(), 0.0);
+  const nlohmann::json& stats = farm.stats;
   EXPECT_EQ(stats["method"], "adaptive-completion");
   EXPECT_EQ(stats["lights"]["vrl"], direct.stats["lights"]["vrl"]);
   EXPECT_EQ(stats["receivers"]["segments"], direct.stats["receivers"]["segments"]);
@@ -170,17 +182,10 @@ TEST(Farm, CausticsOnWorkerProcessesMatchTheDirectRenderBitForBit) {
   const RenderOutput direct = RenderScene(scene, s);
   ASSERT_GT(direct.stats["caustics"]["photons_used"].get<double>(), 0);
 
-  CoordinatorProcess coordinator(dir, dir.Path("state"), {});
-  auto w1 = StartWorker(dir, coordinator.address());
-  auto w2 = StartWorker(dir, coordinator.address());
-  CliResult submit = RunCli(dir, Concat({"submit", scene, "--server", coordinator.address(), "--wait", "--quiet",
-                                         "--out", dir.Path("beam.exr")},
-                                        args));
-  ASSERT_EQ(submit.exit_code, 0) << submit.err;
-  EXPECT_TRUE(SameBits(ReadImage(dir.Path("beam.exr")), direct.image));
-  nlohmann::json stats = nlohmann::json::parse(Slurp(dir.Path("beam.json")));
-  EXPECT_EQ(stats["caustics"]["photons_used"], direct.stats["caustics"]["photons_used"]);
-  EXPECT_EQ(stats["caustics"]["photons"], 20000);
+  const FarmRender farm = SubmitToTwoWorkers(dir, scene, "beam", args);
+  EXPECT_TRUE(SameBits(farm.image, direct.image));
+  EXPECT_EQ(farm.stats["caustics"]["photons_used"], direct.stats["caustics"]["photons_used"]);
+  EXPECT_EQ(farm.stats["caustics"]["photons"], 20000);
 }
 
 // The sharp-lobe split on worker processes: each worker splits its scene's BSDFs as the plan
@@ -201,16 +206,9 @@ TEST(Farm, SharpLobesOnWorkerProcessesMatchTheDirectRenderBitForBit) {
   const RenderOutput direct = RenderScene(scene, s);
   ASSERT_EQ(direct.stats["sharp"]["materials"], 1);
 
-  CoordinatorProcess coordinator(dir, dir.Path("state"), {});
-  auto w1 = StartWorker(dir, coordinator.address());
-  auto w2 = StartWorker(dir, coordinator.address());
-  CliResult submit = RunCli(dir, Concat({"submit", scene, "--server", coordinator.address(), "--wait", "--quiet",
-                                         "--out", dir.Path("glossy.exr")},
-                                        args));
-  ASSERT_EQ(submit.exit_code, 0) << submit.err;
-  EXPECT_TRUE(SameBits(ReadImage(dir.Path("glossy.exr")), direct.image));
-  nlohmann::json stats = nlohmann::json::parse(Slurp(dir.Path("glossy.json")));
-  EXPECT_EQ(stats["sharp"], direct.stats["sharp"]);
+  const FarmRender farm = SubmitToTwoWorkers(dir, scene, "glossy", args);
+  EXPECT_TRUE(SameBits(farm.image, direct.image));
+  EXPECT_EQ(farm.stats["sharp"], direct.stats["sharp"]);
 }
 
 // The path tracer on worker processes: tiles × sample passes, the passes of a pixel summed in
@@ -229,17 +227,10 @@ TEST(Farm, PathTracedMediaSceneOnWorkerProcessesMatchesTheDirectRenderBitForBit)
   EXPECT_EQ(direct.stats["tasks"], 9 * 3);
 
   TempDir dir;
-  CoordinatorProcess coordinator(dir, dir.Path("state"), {});
-  auto w1 = StartWorker(dir, coordinator.address());
-  auto w2 = StartWorker(dir, coordinator.address());
-  CliResult submit = RunCli(dir, Concat({"submit", cloud, "--server", coordinator.address(), "--wait", "--quiet",
-                                         "--out", dir.Path("cloud.exr")},
-                                        args));
-  ASSERT_EQ(submit.exit_code, 0) << submit.err;
-  const Image farm = ReadImage(dir.Path("cloud.exr"));
-  EXPECT_TRUE(SameBits(farm, direct.image));
-  EXPECT_GT(farm.MeanLuminance(), 0.0);
-  nlohmann::json stats = nlohmann::json::parse(Slurp(dir.Path("cloud.json")));
+  const FarmRender farm = SubmitToTwoWorkers(dir, cloud, "cloud", args);
+  EXPECT_TRUE(SameBits(farm.image, direct.image));
+  EXPECT_GT(farm.image.MeanLuminance(), 0.0);
+  const nlohmann::json& stats = farm.stats;
   EXPECT_EQ(stats["method"], "path");
   EXPECT_EQ(stats["spp"], 12);
   EXPECT_EQ(stats["rays"]["shadow"], direct.stats["rays"]["shadow"]);

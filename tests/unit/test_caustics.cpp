@@ -55,48 +55,60 @@ size_t Count(const std::vector<uint8_t>& mask) {
   return n;
 }
 
+// The path tracer's image and brute force's with and without photons, measured over the
+// caustic's pixels (where the path tracer sees clearly more than the virtual lights alone) and
+// over the whole image.
+struct CausticComparison {
+  size_t pixels = 0;
+  double truth = 0, with = 0, without = 0;              // means over the caustic
+  double all_truth = 0, all_with = 0, all_without = 0;  // means over the image
+  double photons_used = 0, energy_fraction = 0;
+};
+
+CausticComparison CompareCaustic(const std::string& path, int spp, size_t lights) {
+  const RenderOutput truth = Render(path, "path", 1024);
+  const RenderOutput without = Render(path, "brute", spp, {"caustic_photons=0"}, lights);
+  const RenderOutput with = Render(path, "brute", spp, {}, lights);
+  const std::vector<uint8_t> mask = CausticMask(truth.image, without.image), all(mask.size(), 1);
+  CausticComparison c;
+  c.pixels = Count(mask);
+  c.truth = MaskedMean(truth.image, mask);
+  c.with = MaskedMean(with.image, mask);
+  c.without = MaskedMean(without.image, mask);
+  c.all_truth = MaskedMean(truth.image, all);
+  c.all_with = MaskedMean(with.image, all);
+  c.all_without = MaskedMean(without.image, all);
+  c.photons_used = with.stats["caustics"]["photons_used"].get<double>();
+  c.energy_fraction = with.stats["caustics"]["energy_fraction"].get<double>();
+  std::printf("%s: caustic (%zu px): path %.4f, brute with photons %.4f, without %.4f\n", path.c_str(), c.pixels,
+              c.truth, c.with, c.without);
+  return c;
+}
+
 TEST(Caustics, GlassSphereCausticOnTheFloorMatchesThePathTracer) {
   TempDir dir;
-  const std::string path = dir.Write("caustic.pbrt", SphereOverFloor(true, false));
-  const RenderOutput truth = Render(path, "path", 1024);
-  const RenderOutput without = Render(path, "brute", 4, {"caustic_photons=0"});
-  const RenderOutput with = Render(path, "brute", 4);
-  const std::vector<uint8_t> mask = CausticMask(truth.image, without.image);
-  ASSERT_GT(Count(mask), 20u) << "the scene must show a caustic";
-  const double t = MaskedMean(truth.image, mask), w = MaskedMean(with.image, mask),
-               wo = MaskedMean(without.image, mask);
+  const CausticComparison c = CompareCaustic(dir.Write("caustic.pbrt", SphereOverFloor(true, false)), 4, 3000);
+  ASSERT_GT(c.pixels, 20u) << "the scene must show a caustic";
   // Without photons the caustic is missing; with them it is there, within the photon map's blur
   // and both renders' noise.
-  std::printf("caustic region (%zu px): path %.4f, brute with caustics %.4f, without %.4f\n", Count(mask), t, w, wo);
-  EXPECT_LT(wo, 0.5 * t);
-  EXPECT_NEAR(w, t, 0.12 * t) << "path " << t << ", brute with caustics " << w << ", without " << wo;
+  EXPECT_LT(c.without, 0.5 * c.truth);
+  EXPECT_NEAR(c.with, c.truth, 0.12 * c.truth);
   // And the whole image agrees: nothing counted twice.
-  EXPECT_NEAR(MaskedMean(with.image, std::vector<uint8_t>(mask.size(), 1)),
-              MaskedMean(truth.image, std::vector<uint8_t>(mask.size(), 1)), 0.05 * t);
-  EXPECT_GT(with.stats["caustics"]["photons"].get<double>(), 0);
-  EXPECT_GT(with.stats["caustics"]["photons_used"].get<double>(), 0);
-  EXPECT_GT(with.stats["caustics"]["energy_fraction"].get<double>(), 0.01);
+  EXPECT_NEAR(c.all_with, c.all_truth, 0.05 * c.truth);
+  EXPECT_GT(c.photons_used, 0);
+  EXPECT_GT(c.energy_fraction, 0.01);
 }
 
 TEST(Caustics, BeamThroughFogMatchesThePathTracer) {
   TempDir dir;
-  const std::string path = dir.Write("beam.pbrt", SphereOverFloor(true, true));
-  const RenderOutput truth = Render(path, "path", 1024);
   // Few lights keep brute force over eye segments affordable; their own bias (a few percent
   // here) cancels in the caustic's increment, which is what is compared.
-  const RenderOutput without = Render(path, "brute", 2, {"caustic_photons=0"}, 1000);
-  const RenderOutput with = Render(path, "brute", 2, {}, 1000);
-  const std::vector<uint8_t> mask = CausticMask(truth.image, without.image);
-  ASSERT_GT(Count(mask), 20u) << "the scene must show a caustic";
-  const double t = MaskedMean(truth.image, mask), w = MaskedMean(with.image, mask),
-               wo = MaskedMean(without.image, mask);
-  std::printf("beam region (%zu px): path %.4f, brute with caustics %.4f, without %.4f\n", Count(mask), t, w, wo);
-  EXPECT_LT(wo, 0.6 * t);
-  EXPECT_NEAR(w - wo, t - wo, 0.15 * (t - wo)) << "path " << t << ", brute with caustics " << w << ", without " << wo;
-  const std::vector<uint8_t> all(mask.size(), 1);
-  EXPECT_NEAR(MaskedMean(with.image, all) - MaskedMean(without.image, all),
-              MaskedMean(truth.image, all) - MaskedMean(without.image, all), 0.05 * t);
-  EXPECT_GT(with.stats["caustics"]["photons_used"].get<double>(), 0);
+  const CausticComparison c = CompareCaustic(dir.Write("beam.pbrt", SphereOverFloor(true, true)), 2, 1000);
+  ASSERT_GT(c.pixels, 20u) << "the scene must show a caustic";
+  EXPECT_LT(c.without, 0.6 * c.truth);
+  EXPECT_NEAR(c.with - c.without, c.truth - c.without, 0.15 * (c.truth - c.without));
+  EXPECT_NEAR(c.all_with - c.all_without, c.all_truth - c.all_without, 0.05 * c.truth);
+  EXPECT_GT(c.photons_used, 0);
 }
 
 TEST(Caustics, OnlyWhereTheSceneHasThem) {
