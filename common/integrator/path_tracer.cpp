@@ -6,17 +6,11 @@
 #include <cmath>
 
 #include "common/scene/phase.h"
+#include "common/util/sampling.h"
 
 namespace lightfarm {
 
 namespace {
-
-// Veach's power heuristic (β = 2) for one sample from each of two strategies.
-float PowerHeuristic(float a, float b) {
-  const float a2 = a * a, b2 = b * b;
-  if (std::isinf(a2)) return 1.f;
-  return a2 + b2 > 0 ? a2 / (a2 + b2) : 0.f;
-}
 
 constexpr int kMaxPassthrough = 64;  // interface crossings without scattering before giving up
 

@@ -63,13 +63,6 @@ void AddEyeSegments(const Medium& med, int medium, const Ray& ray, float tmax, R
   }
 }
 
-// Veach's power heuristic (β = 2).
-float PowerHeuristic(float a, float b) {
-  const float a2 = a * a, b2 = b * b;
-  if (std::isinf(a2)) return 1.f;
-  return a2 + b2 > 0 ? a2 / (a2 + b2) : 0.f;
-}
-
 // Next-event estimation for the sharp lobe of the vertex at `hit` (docs/rendering.md, "Sharp
 // lobes"), the sample combined by MIS with the lobe's own: the light arriving through the lobe,
 // given that the camera path chose the lobe (with probability p_lobe).

@@ -29,6 +29,14 @@ inline Vec3 SampleCosineHemisphere(Vec2 u) {
 }
 inline float CosineHemispherePdf(float cos_theta) { return cos_theta * kInvPi; }
 
+// Veach's power heuristic (β = 2): the MIS weight of a sample of density a when the other
+// strategy would have drawn it with density b (one sample from each).
+inline float PowerHeuristic(float a, float b) {
+  const float a2 = a * a, b2 = b * b;
+  if (std::isinf(a2)) return 1.f;
+  return a2 + b2 > 0 ? a2 / (a2 + b2) : 0.f;
+}
+
 inline Vec3 SampleUniformSphere(Vec2 u) {
   float z = 1 - 2 * u.x;
   float r = SafeSqrt(1 - z * z);
