@@ -55,6 +55,7 @@ void RunRender(const RenderArgs& a) {
   const TargetErrorPlan target = ApplyTargetError(target_args, a.scene, &s);
   if (a.out.size() < 5 || a.out.substr(a.out.size() - 4) != ".exr")
     throw OptionError("--out must name an .exr file, got \"" + a.out + "\"");
+  RequireImageIo();
   std::filesystem::path out_path(a.out);
   if (out_path.has_parent_path()) std::filesystem::create_directories(out_path.parent_path());
   if (const std::filesystem::path stats_path(a.stats); stats_path.has_parent_path()) {

@@ -12,6 +12,7 @@
 #include <iostream>
 #include <thread>
 
+#include "common/image/image_io.h"
 #include "coordinator/render_client.h"
 #include "coordinator/cli_validators.h"
 #include "coordinator/services.h"
@@ -81,6 +82,7 @@ int main(int argc, char** argv) {
   try {
     opt.max_blob_bytes = uint64_t(max_blob_mb * 1024.0 * 1024.0);
     server.token = lightfarm::ReadTokenFile(token_file);
+    lightfarm::RequireImageIo();  // every job ends in an EXR: fail now, not at the first job's end
     lightfarm::Coordinator coordinator(opt);
     coordinator.Start();
     lightfarm::FarmServer farm(coordinator, server);

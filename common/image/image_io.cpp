@@ -1,27 +1,79 @@
 #include "common/image/image_io.h"
 
-#include <OpenImageIO/filter.h>
-#include <OpenImageIO/imagebuf.h>
-#include <OpenImageIO/imagebufalgo.h>
-#include <OpenImageIO/imageio.h>
+#include <dlfcn.h>
 #include <unistd.h>
 
-#include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <cstdint>
+#include <cstdlib>
 #include <filesystem>
-#include <memory>
 #include <stdexcept>
 #include <system_error>
 #include <vector>
+
+#include "common/image/image_io_backend.h"
 
 namespace lightfarm {
 namespace {
 
 namespace fs = std::filesystem;
 
-static_assert(sizeof(RGB) == 3 * sizeof(float), "Image pixels are passed to OIIO as float[3]");
+constexpr const char* kModuleName = "liblightfarm_imageio.so";
+
+static_assert(sizeof(RGB) == 3 * sizeof(float), "Image pixels cross to the module as float[3]");
+
+// Where the module may be: $LIGHTFARM_IMAGEIO_MODULE alone when it is set; else, in order,
+// beside the running program (the build tree), ../lib/lightfarm from it (an installed tree,
+// CMakeLists.txt's install rules), the path it was built at (programs in subfolders of the build
+// tree, such as the fuzz targets).
+std::vector<fs::path> ModuleCandidates() {
+  std::vector<fs::path> out;
+  if (const char* env = std::getenv("LIGHTFARM_IMAGEIO_MODULE"); env && *env) return {fs::path(env)};
+  std::error_code ec;
+  const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
+  if (!ec) {
+    out.push_back(exe.parent_path() / kModuleName);
+    out.push_back(exe.parent_path().parent_path() / "lib" / "lightfarm" / kModuleName);
+  }
+#ifdef LIGHTFARM_IMAGEIO_MODULE_PATH
+  out.emplace_back(LIGHTFARM_IMAGEIO_MODULE_PATH);
+#endif
+  return out;
+}
+
+const ImageIoBackend* LoadBackend() {
+  std::string tried;
+  for (const fs::path& candidate : ModuleCandidates()) {
+    std::error_code ec;
+    if (!fs::exists(candidate, ec)) {
+      tried += "; " + candidate.string() + ": no such file";
+      continue;
+    }
+    // Kept for the life of the process (never dlclose'd: its objects may be referenced until exit).
+    void* handle = ::dlopen(candidate.c_str(), RTLD_NOW | RTLD_LOCAL);
+    if (!handle) {
+      tried += "; " + candidate.string() + ": " + ::dlerror();
+      continue;
+    }
+    using Entry = const ImageIoBackend* (*)();
+    auto entry = reinterpret_cast<Entry>(::dlsym(handle, "lightfarm_image_io_backend"));
+    if (!entry) {
+      tried += "; " + candidate.string() + ": not lightfarm's image module";
+      continue;
+    }
+    return entry();
+  }
+  // One line, as every error a user sees.
+  throw std::runtime_error(std::string("image I/O needs ") + kModuleName +
+                           " (lightfarm's OpenImageIO module), which could not be loaded" + tried);
+}
+
+// Loaded on first use; a failed load throws and is retried by the next call.
+const ImageIoBackend& Backend() {
+  static const ImageIoBackend* backend = LoadBackend();
+  return *backend;
+}
 
 std::string SizeString(int w, int h) { return std::to_string(w) + "x" + std::to_string(h); }
 
@@ -45,10 +97,11 @@ fs::path TemporaryPathBeside(const fs::path& path) {
   return path.parent_path() / name;
 }
 
-// Writes `pixels` (3 channels of `type`) with the OIIO plugin `format` to a temporary file and
-// renames it over `path`; on any failure the temporary file is removed and `path` is untouched.
-void WriteAtomically(const std::string& path, const char* format, OIIO::ImageSpec spec,
-                     const void* pixels) {
+// Writes the pixels to a temporary file and renames it over `path`; on any failure the
+// temporary file is removed and `path` is untouched.
+void WriteAtomically(const std::string& path, const char* format, const Image& image,
+                     bool float_pixels, const void* pixels) {
+  const ImageIoBackend& backend = Backend();
   const fs::path target(path);
   const fs::path temporary = TemporaryPathBeside(target);
   auto fail = [&](const std::string& why) {
@@ -56,19 +109,11 @@ void WriteAtomically(const std::string& path, const char* format, OIIO::ImageSpe
     fs::remove(temporary, ignored);
     throw std::runtime_error("cannot write \"" + path + "\": " + why);
   };
-
-  // Pick the plugin by format name: the temporary file's extension says nothing.
-  std::unique_ptr<OIIO::ImageOutput> out = OIIO::ImageOutput::create(format);
-  if (!out) fail(std::string("no OpenImageIO writer for ") + format + ": " + OIIO::geterror());
-  if (!out->open(temporary.string(), spec)) fail(out->geterror());
-  if (!out->write_image(spec.format, pixels)) {
-    std::string why = out->geterror();
-    out->close();
-    fail(why);
+  try {
+    backend.write(temporary.string(), format, image.width, image.height, float_pixels, pixels);
+  } catch (const std::exception& e) {
+    fail(e.what());
   }
-  if (!out->close()) fail(out->geterror());
-  out.reset();
-
   std::error_code ec;
   fs::rename(temporary, target, ec);
   if (ec) fail("rename from temporary file failed: " + ec.message());
@@ -87,60 +132,28 @@ uint8_t LinearToSRGB8(float linear) {
   return static_cast<uint8_t>(std::lround(LinearToSRGB(linear) * 255.f));
 }
 
+void RequireImageIo() { Backend(); }
+
 ImageSize ReadImageSize(const std::string& path) {
-  std::unique_ptr<OIIO::ImageInput> in = OIIO::ImageInput::open(path);
-  if (!in) throw std::runtime_error("cannot read image \"" + path + "\": " + OIIO::geterror());
-  const OIIO::ImageSpec& spec = in->spec();
-  return {spec.full_width > 0 ? spec.full_width : spec.width, spec.full_height > 0 ? spec.full_height : spec.height};
+  ImageSize size;
+  Backend().read_size(path, &size.width, &size.height);
+  return size;
 }
 
 Image ReadImage(const std::string& path) {
-  std::unique_ptr<OIIO::ImageInput> in = OIIO::ImageInput::open(path);
-  if (!in) {
-    throw std::runtime_error("cannot read image \"" + path + "\": " + OIIO::geterror());
-  }
-  const OIIO::ImageSpec spec = in->spec();
-  auto fail = [&](const std::string& why) -> void {
-    throw std::runtime_error("cannot read image \"" + path + "\": " + why);
-  };
-  if (spec.deep) fail("deep images are not supported");
-  if (spec.depth > 1) fail("volume images are not supported");
-  if (spec.width <= 0 || spec.height <= 0 || spec.nchannels <= 0) fail("image is empty");
-
-  // Read the data window, all channels, as float.
-  const int nc = spec.nchannels;
-  std::vector<float> data(static_cast<size_t>(spec.width) * static_cast<size_t>(spec.height) *
-                          static_cast<size_t>(nc));
-  if (!in->read_image(0, 0, 0, nc, OIIO::TypeDesc::FLOAT, data.data())) fail(in->geterror());
-  in->close();
-
-  // Place it in the display window (they coincide for almost every file).
-  const int full_w = spec.full_width > 0 ? spec.full_width : spec.width;
-  const int full_h = spec.full_height > 0 ? spec.full_height : spec.height;
-  const int dx = spec.x - (spec.full_width > 0 ? spec.full_x : spec.x);
-  const int dy = spec.y - (spec.full_height > 0 ? spec.full_y : spec.y);
-  Image image(full_w, full_h);
-  for (int y = 0; y < spec.height; ++y) {
-    const int iy = y + dy;
-    if (iy < 0 || iy >= full_h) continue;
-    for (int x = 0; x < spec.width; ++x) {
-      const int ix = x + dx;
-      if (ix < 0 || ix >= full_w) continue;
-      const float* p = &data[(static_cast<size_t>(y) * static_cast<size_t>(spec.width) +
-                              static_cast<size_t>(x)) *
-                             static_cast<size_t>(nc)];
-      image.at(ix, iy) = nc >= 3 ? RGB(p[0], p[1], p[2]) : RGB(p[0]);
-    }
+  int width = 0, height = 0;
+  std::vector<float> rgb;
+  Backend().read(path, &width, &height, &rgb);
+  Image image(width, height);
+  for (size_t i = 0; i < image.PixelCount(); ++i) {
+    image.pixels[i] = RGB(rgb[3 * i], rgb[3 * i + 1], rgb[3 * i + 2]);
   }
   return image;
 }
 
 void WriteEXR(const std::string& path, const Image& image) {
   CheckWritable(path, image);
-  OIIO::ImageSpec spec(image.width, image.height, 3, OIIO::TypeDesc::FLOAT);
-  spec.attribute("compression", "zip");
-  spec.attribute("oiio:ColorSpace", "Linear");
-  WriteAtomically(path, "openexr", spec, image.pixels.data());
+  WriteAtomically(path, "openexr", image, true, image.pixels.data());
 }
 
 void WritePNG(const std::string& path, const Image& image, float exposure) {
@@ -153,9 +166,7 @@ void WritePNG(const std::string& path, const Image& image, float exposure) {
   for (size_t i = 0; i < image.PixelCount(); ++i) {
     for (int c = 0; c < 3; ++c) encoded[3 * i + c] = LinearToSRGB8(image.pixels[i][c] * exposure);
   }
-  OIIO::ImageSpec spec(image.width, image.height, 3, OIIO::TypeDesc::UINT8);
-  spec.attribute("oiio:ColorSpace", "sRGB");
-  WriteAtomically(path, "png", spec, encoded.data());
+  WriteAtomically(path, "png", image, false, encoded.data());
 }
 
 Image ResizeImage(const Image& image, int width, int height) {
@@ -164,40 +175,15 @@ Image ResizeImage(const Image& image, int width, int height) {
   }
   if (image.Empty()) throw std::invalid_argument("cannot resize an empty image");
   if (image.width == width && image.height == height) return image;
-
-  OIIO::ImageBuf src(OIIO::ImageSpec(image.width, image.height, 3, OIIO::TypeDesc::FLOAT));
-  src.set_pixels(src.roi(), OIIO::TypeDesc::FLOAT, image.pixels.data());
-  OIIO::ImageBuf dst(OIIO::ImageSpec(width, height, 3, OIIO::TypeDesc::FLOAT));
-
-  // Choose the filter. OIIO expresses filter widths in destination pixels.
-  // - Shrinking on both axes: a box one destination pixel wide, i.e. each output pixel is the
-  //   plain average of the source pixels it covers. That is the area (integral) filter: it
-  //   preserves the image mean exactly for integer ratios, and unlike OIIO's default lanczos3
-  //   it has no negative lobes, so HDR fireflies cannot ring into negative or inflated
-  //   neighbours — which would bias the error metrics computed against the result.
-  // - Otherwise (enlarging on at least one axis): a tent two *source* pixels wide on enlarged
-  //   axes (bilinear interpolation) and two destination pixels wide on shrunk ones. Still
-  //   nonnegative, so no ringing; a box would leave gaps or blocks when enlarging.
-  const float xratio = static_cast<float>(width) / static_cast<float>(image.width);
-  const float yratio = static_cast<float>(height) / static_cast<float>(image.height);
-  const bool shrinking = xratio <= 1.f && yratio <= 1.f;
-  const char* name = shrinking ? "box" : "triangle";
-  const float fw = shrinking ? 1.f : 2.f * std::max(1.f, xratio);
-  const float fh = shrinking ? 1.f : 2.f * std::max(1.f, yratio);
-  std::unique_ptr<OIIO::Filter2D, void (*)(OIIO::Filter2D*)> filter(
-      OIIO::Filter2D::create(name, fw, fh), &OIIO::Filter2D::destroy);
-  if (!filter) throw std::runtime_error(std::string("OpenImageIO has no filter ") + name);
-  if (!OIIO::ImageBufAlgo::resize(dst, src, filter.get())) {
-    throw std::runtime_error("resize to " + SizeString(width, height) +
-                             " failed: " + dst.geterror());
-  }
-
   Image out(width, height);
-  if (!dst.get_pixels(dst.roi(), OIIO::TypeDesc::FLOAT, out.pixels.data())) {
-    throw std::runtime_error("resize to " + SizeString(width, height) +
-                             " failed: " + dst.geterror());
-  }
+  Backend().resize(reinterpret_cast<const float*>(image.pixels.data()), image.width, image.height,
+                   reinterpret_cast<float*>(out.pixels.data()), width, height);
   return out;
+}
+
+void WriteContactSheet(const std::vector<std::pair<std::string, std::string>>& top,
+                       const std::vector<std::string>& bottom, const std::string& path) {
+  Backend().contact_sheet(top, bottom, path);
 }
 
 }  // namespace lightfarm

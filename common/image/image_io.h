@@ -1,9 +1,13 @@
 // Reading and writing images through OpenImageIO, and resampling between resolutions.
 // Every function throws std::runtime_error naming the file and OpenImageIO's reason on failure.
+// OpenImageIO is loaded on the first call, from the liblightfarm_imageio.so module
+// (image_io_backend.h): processes that touch no image never load it.
 #pragma once
 
 #include <cstdint>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "common/image/image.h"
 
@@ -16,6 +20,10 @@ namespace lightfarm {
 // data window is smaller than its display window is returned at display-window size, black
 // outside the data window.
 Image ReadImage(const std::string& path);
+
+// Loads the image module now (every other function loads it on first use): a program that will
+// write images calls it before hours of work, so a missing module fails at once, not at the end.
+void RequireImageIo();
 
 // The size ReadImage would return (the display window), from the file's header alone.
 struct ImageSize {
@@ -35,6 +43,12 @@ void WritePNG(const std::string& path, const Image& image, float exposure = 1.f)
 // Resamples `image` to width × height with ImageBufAlgo::resize (see image_io.cpp for the
 // filter choice). Downsampling preserves the image mean (exactly for integer ratios).
 Image ResizeImage(const Image& image, int width, int height);
+
+// Pastes PNGs into a grid: row 0 the `top` images (label, file), row 1 the `bottom` ones (an empty
+// name leaves its cell black). Small images are enlarged (nearest neighbour) to about 200 pixels
+// wide. Labels need a font; without one the sheet has none.
+void WriteContactSheet(const std::vector<std::pair<std::string, std::string>>& top,
+                       const std::vector<std::string>& bottom, const std::string& path);
 
 // The sRGB OETF (IEC 61966-2-1) of a linear value in [0, 1], and its 8-bit quantisation as
 // WritePNG applies it. Exposed for tests and for callers that encode colours themselves.

@@ -33,6 +33,20 @@ inline std::string SourcePath(const std::string& rel) {
   return std::string(LIGHTFARM_SOURCE_DIR) + "/" + rel;
 }
 
+// The project's example scene (scenes/cornell-box), the farm and CLI tests' usual job.
+inline std::string ExampleCornellBox() { return SourcePath("scenes/cornell-box/scene.pbrt"); }
+
+// A unit quad in the z = 0 plane, as a scene line.
+inline const std::string kQuad =
+    "Shape \"trianglemesh\" \"point3 P\" [-1 -1 0 1 -1 0 1 1 0 -1 1 0]"
+    " \"integer indices\" [0 1 2 0 2 3]\n";
+
+// The smallest complete scene: 8×8 pixels, a point light over the quad.
+inline const std::string kTinyScene =
+    "Film \"rgb\" \"integer xresolution\" [8] \"integer yresolution\" [8]\n"
+    "LookAt 0 0 5  0 0 0  0 1 0\nCamera \"perspective\" \"float fov\" [40]\nWorldBegin\n"
+    "LightSource \"point\" \"rgb I\" [5 5 5] \"point3 from\" [0 0 3]\n" + kQuad;
+
 // A fresh directory under the system temp dir, removed when the object dies.
 class TempDir {
  public:

@@ -16,7 +16,7 @@
 #include "tests/integration/farm_harness.h"
 
 namespace lightfarm {
-namespace {
+namespace test_farm {
 
 using namespace lightfarm::testing;
 
@@ -35,21 +35,13 @@ RenderSettings JobSettings() {
   return s;
 }
 
-std::string CornellBox() { return SourcePath("scenes/cornell-box/scene.pbrt"); }
-
 // The direct in-process render (RenderScene), computed once.
 const RenderOutput& Direct() {
-  static const RenderOutput out = RenderScene(CornellBox(), JobSettings());
+  static const RenderOutput out = RenderScene(ExampleCornellBox(), JobSettings());
   return out;
 }
 const Image& Reference() { return Direct().image; }
 int ExpectedTasks() { return Direct().stats["tasks"].get<int>(); }
-
-const char* kTinyScene =
-    "Film \"rgb\" \"integer xresolution\" [8] \"integer yresolution\" [8]\n"
-    "LookAt 0 0 5  0 0 0  0 1 0\nCamera \"perspective\" \"float fov\" [40]\nWorldBegin\n"
-    "LightSource \"point\" \"rgb I\" [5 5 5] \"point3 from\" [0 0 3]\n"
-    "Shape \"trianglemesh\" \"point3 P\" [-1 -1 0 1 -1 0 1 1 0 -1 1 0] \"integer indices\" [0 1 2 0 2 3]\n";
 
 std::vector<std::string> Concat(std::vector<std::string> a, const std::vector<std::string>& b) {
   a.insert(a.end(), b.begin(), b.end());
@@ -61,7 +53,7 @@ TEST(Farm, CliSubmitMatchesEmbeddedAndDirectRenderBitForBit) {
   CoordinatorProcess coordinator(dir, dir.Path("state"), {});
   auto w1 = StartWorker(dir, coordinator.address());
   auto w2 = StartWorker(dir, coordinator.address());
-  CliResult submit = RunCli(dir, Concat({"submit", CornellBox(), "--server", coordinator.address(), "--wait",
+  CliResult submit = RunCli(dir, Concat({"submit", ExampleCornellBox(), "--server", coordinator.address(), "--wait",
                                          "--quiet", "--out", dir.Path("farm.exr")},
                                         kJobArgs));
   ASSERT_EQ(submit.exit_code, 0) << submit.err;
@@ -71,7 +63,7 @@ TEST(Farm, CliSubmitMatchesEmbeddedAndDirectRenderBitForBit) {
   EXPECT_EQ(stats["seed"], 7);
   EXPECT_EQ(stats["farm"]["tasks"], ExpectedTasks());
 
-  CliResult embedded = RunCli(dir, Concat({"render", CornellBox(), "--workers", "2", "--quiet", "--out",
+  CliResult embedded = RunCli(dir, Concat({"render", ExampleCornellBox(), "--workers", "2", "--quiet", "--out",
                                            dir.Path("embedded.exr"), "--stats", dir.Path("embedded.json")},
                                           kJobArgs));
   ASSERT_EQ(embedded.exit_code, 0) << embedded.err;
@@ -107,8 +99,8 @@ TEST(Farm, EveryMethodOnTheEmbeddedFarmMatchesTheDirectRender) {
   s.params = {"rows_per_slice=48"};
   for (const std::string& method : GatherMethodNames()) {
     s.method = method;
-    RenderOutput direct = RenderScene(CornellBox(), s);
-    EmbeddedRender farm = RenderOnEmbeddedFarm(CornellBox(), s, 2);
+    RenderOutput direct = RenderScene(ExampleCornellBox(), s);
+    EmbeddedRender farm = RenderOnEmbeddedFarm(ExampleCornellBox(), s, 2);
     EXPECT_TRUE(SameBits(farm.image, direct.image)) << method;
     EXPECT_EQ(farm.stats["tasks"], direct.stats["tasks"]) << method;
     EXPECT_EQ(farm.stats["matrix"]["elements_evaluated"], direct.stats["matrix"]["elements_evaluated"]) << method;
@@ -237,6 +229,28 @@ TEST(Farm, PathTracedMediaSceneOnWorkerProcessesMatchesTheDirectRenderBitForBit)
   EXPECT_EQ(stats["rays"]["camera"], 24 * 24 * 12);
 }
 
+// The shared libraries a live process has mapped.
+std::string MappedFiles(pid_t pid) { return Slurp("/proc/" + std::to_string(pid) + "/maps"); }
+
+// OpenImageIO (~300 libraries, half a second per process start) is a module loaded only where
+// images are read or written (common/image/image_io_backend.h): the coordinator, which writes
+// every job's EXR and checks for the module at start, and never a worker on a scene without
+// image textures.
+TEST(Farm, OnlyTheCoordinatorLoadsTheImageLibraries) {
+  TempDir dir;
+  CoordinatorProcess coordinator(dir, dir.Path("state"), {});
+  auto worker = StartWorker(dir, coordinator.address());
+  RenderClient client = coordinator.Client();
+  RenderSettings s = JobSettings();
+  s.lights = 2000;
+  const std::string job = client.Submit(client.UploadScene(ExampleCornellBox(), true), s, 0, "maps");
+  const v1::JobStatus st = WaitForJob(client, job, [](const v1::JobStatus&) { return false; }, 120);
+  ASSERT_EQ(st.state(), v1::JOB_STATE_DONE) << st.error();
+  EXPECT_EQ(MappedFiles(worker->pid()).find("libOpenImageIO"), std::string::npos);
+  EXPECT_NE(MappedFiles(coordinator.process().pid()).find("libOpenImageIO"), std::string::npos);
+  EXPECT_NE(MappedFiles(coordinator.process().pid()).find("liblightfarm_imageio.so"), std::string::npos);
+}
+
 TEST(Farm, KilledWorkerIsReplacedWithinOneLeaseTimeout) {
   TempDir dir;
   const double lease = 1.5;
@@ -244,7 +258,7 @@ TEST(Farm, KilledWorkerIsReplacedWithinOneLeaseTimeout) {
   auto w1 = StartWorker(dir, coordinator.address());
   auto w2 = StartWorker(dir, coordinator.address());
   RenderClient client = coordinator.Client();
-  const std::string job = client.Submit(client.UploadScene(CornellBox(), true), JobSettings(), 0, "kill-worker");
+  const std::string job = client.Submit(client.UploadScene(ExampleCornellBox(), true), JobSettings(), 0, "kill-worker");
   v1::JobStatus st = WaitForJob(client, job, [](const v1::JobStatus& s) { return s.tasks_done() >= 2; }, 60);
   ASSERT_EQ(st.state(), v1::JOB_STATE_RUNNING) << st.error();
   // Kill the worker that holds a lease right now.
@@ -296,7 +310,7 @@ TEST(Farm, KilledCoordinatorResumesWithoutRecomputingFinishedTasks) {
   std::string job;
   {
     RenderClient client = coordinator->Client();
-    job = client.Submit(client.UploadScene(CornellBox(), true), JobSettings(), 0, "kill-coordinator");
+    job = client.Submit(client.UploadScene(ExampleCornellBox(), true), JobSettings(), 0, "kill-coordinator");
     v1::JobStatus st = WaitForJob(client, job, [](const v1::JobStatus& s) { return s.tasks_done() >= 4; }, 60);
     ASSERT_EQ(st.state(), v1::JOB_STATE_RUNNING) << st.error();
   }
@@ -335,7 +349,7 @@ TEST(Farm, AuthenticationIsRequiredOnEveryRpc) {
   CliResult none = RunCli(dir, {"status", "--server", coordinator.address()});
   EXPECT_NE(none.exit_code, 0);
   EXPECT_NE(none.err.find("UNAUTHENTICATED"), std::string::npos) << none.err;
-  CliResult bad = RunCli(dir, {"submit", CornellBox(), "--server", coordinator.address(), "--token-file", wrong});
+  CliResult bad = RunCli(dir, {"submit", ExampleCornellBox(), "--server", coordinator.address(), "--token-file", wrong});
   EXPECT_NE(bad.exit_code, 0);
   EXPECT_NE(bad.err.find("UNAUTHENTICATED"), std::string::npos) << bad.err;
   // A worker with the wrong token is refused for good.
@@ -447,5 +461,5 @@ TEST(Farm, FiftyConcurrentSubmissionsAllCompleteOnce) {
   EXPECT_EQ(client.ListJobs().size(), size_t(kJobs));
 }
 
-}  // namespace
+}  // namespace test_farm
 }  // namespace lightfarm

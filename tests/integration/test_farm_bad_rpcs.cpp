@@ -16,16 +16,10 @@
 #include "tests/integration/farm_harness.h"
 
 namespace lightfarm {
-namespace {
+namespace test_farm_bad_rpcs {
 
 using namespace lightfarm::testing;
 using grpc::StatusCode;
-
-const char* kTinyScene =
-    "Film \"rgb\" \"integer xresolution\" [8] \"integer yresolution\" [8]\n"
-    "LookAt 0 0 5  0 0 0  0 1 0\nCamera \"perspective\" \"float fov\" [40]\nWorldBegin\n"
-    "LightSource \"point\" \"rgb I\" [5 5 5] \"point3 from\" [0 0 3]\n"
-    "Shape \"trianglemesh\" \"point3 P\" [-1 -1 0 1 -1 0 1 1 0 -1 1 0] \"integer indices\" [0 1 2 0 2 3]\n";
 
 std::shared_ptr<grpc::Channel> Channel(const CoordinatorProcess& c) {
   ChannelOptions o;
@@ -390,5 +384,5 @@ TEST(FarmBadRpcs, WorkerCallsOutOfOrderGetPreciseCodesAndCannotFailAJob) {
   EXPECT_TRUE(HealthServing(coordinator.address()));
 }
 
-}  // namespace
+}  // namespace test_farm_bad_rpcs
 }  // namespace lightfarm

@@ -10,7 +10,7 @@
 #include "tests/integration/farm_harness.h"
 
 namespace lightfarm {
-namespace {
+namespace test_farm_cli_options {
 
 using namespace lightfarm::testing;
 
@@ -130,5 +130,5 @@ TEST(FarmCliOptions, BadServerAddressesAreRejectedBeforeConnecting) {
   }
 }
 
-}  // namespace
+}  // namespace test_farm_cli_options
 }  // namespace lightfarm

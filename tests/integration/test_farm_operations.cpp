@@ -9,11 +9,9 @@
 #include "tests/integration/farm_harness.h"
 
 namespace lightfarm {
-namespace {
+namespace test_farm_operations {
 
 using namespace lightfarm::testing;
-
-std::string CornellBox() { return SourcePath("scenes/cornell-box/scene.pbrt"); }
 
 RenderSettings SmallJob() {
   RenderSettings s;
@@ -29,7 +27,7 @@ TEST(FarmOperations, CancellingAJobStopsItsRunningTaskOnTheWorker) {
   CoordinatorProcess coordinator(dir, dir.Path("state"), {"--lease-timeout", "2"});
   auto worker = StartWorker(dir, coordinator.address());
   RenderClient client = coordinator.Client();
-  const v1::SceneManifest scene = client.UploadScene(CornellBox(), true);
+  const v1::SceneManifest scene = client.UploadScene(ExampleCornellBox(), true);
 
   // One task of 128² receivers × 10^5 lights, brute force, on one thread: minutes of work.
   RenderSettings big;
@@ -70,7 +68,7 @@ TEST(FarmOperations, WatchPreviewsShowMoreFinishedTilesAsTheJobRuns) {
   s.width = s.height = 64;
   s.lights = 20000;
   s.params = {"rows_per_slice=64"};  // 64 tiles
-  const std::string job = client.Submit(client.UploadScene(CornellBox(), true), s, 0, "preview");
+  const std::string job = client.Submit(client.UploadScene(ExampleCornellBox(), true), s, 0, "preview");
   // The CLI keeps a PNG file updated while it follows the job.
   Process cli_watch({LIGHTFARM_CLI_PATH, "watch", job, "--server", coordinator.address(), "--preview",
                      dir.Path("w.png"), "--preview-interval", "0.25"},
@@ -128,12 +126,12 @@ TEST(FarmOperations, TlsCarriesWorkersAndClientsAndRefusesPlaintext) {
 
   const std::vector<std::string> job = {"--resolution", "16x16", "--lights", "2000", "--seed", "11",
                                         "--param", "rows_per_slice=64", "--method", "brute"};
-  std::vector<std::string> submit = {"submit", CornellBox(), "--server", coordinator.address(), "--tls-ca",
+  std::vector<std::string> submit = {"submit", ExampleCornellBox(), "--server", coordinator.address(), "--tls-ca",
                                      dir.Path("cert.pem"), "--wait", "--quiet", "--out", dir.Path("tls.exr")};
   submit.insert(submit.end(), job.begin(), job.end());
   CliResult r = RunCli(dir, submit);
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  const RenderOutput direct = RenderScene(CornellBox(), [] {
+  const RenderOutput direct = RenderScene(ExampleCornellBox(), [] {
     RenderSettings s = SmallJob();
     s.method = "brute";
     return s;
@@ -220,5 +218,5 @@ TEST(FarmOperations, SubmitWithTargetErrorUsesTheBenchAndReportsTheMeasuredError
   EXPECT_NE(astats["method_rule"].get<std::string>().find("bench against the truth"), std::string::npos);
 }
 
-}  // namespace
+}  // namespace test_farm_operations
 }  // namespace lightfarm

@@ -9,7 +9,7 @@
 #include "tests/common/test_util.h"
 
 namespace lightfarm {
-namespace {
+namespace test_shared_scenes {
 
 bool AllFinite(const Image& img) { return img.CountNonFinite() == 0; }
 
@@ -139,5 +139,5 @@ TEST(ProjectScenes, CornellBoxExampleRendersAndStatsHaveTheContractKeys) {
             st["matrix"]["rows"].get<double>() * st["matrix"]["cols"].get<double>());
 }
 
-}  // namespace
+}  // namespace test_shared_scenes
 }  // namespace lightfarm

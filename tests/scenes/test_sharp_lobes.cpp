@@ -14,7 +14,7 @@
 #include "tests/common/test_util.h"
 
 namespace lightfarm {
-namespace {
+namespace test_sharp_lobes {
 
 using testing::GlossyPlane;
 using testing::PixelRect;
@@ -114,5 +114,5 @@ TEST(SharpLobes, OnlyWhereTheSceneHasThemAndTheSameBitsForAnyThreadCount) {
   EXPECT_TRUE(testing::SameBits(one.image, two.image));
 }
 
-}  // namespace
+}  // namespace test_sharp_lobes
 }  // namespace lightfarm

@@ -20,7 +20,7 @@
 #include "tests/common/test_util.h"
 
 namespace lightfarm {
-namespace {
+namespace test_transport_vs_path_tracer {
 
 using namespace lightfarm::testing;
 
@@ -176,5 +176,5 @@ TEST(TransportVsPathTracer, PathMethodMatchesTheIndependentTracerMultipleScatter
   ExpectPathMethodMatchesPathTracer(4);
 }
 
-}  // namespace
+}  // namespace test_transport_vs_path_tracer
 }  // namespace lightfarm

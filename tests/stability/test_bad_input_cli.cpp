@@ -11,11 +11,12 @@
 #include "tests/stability/stability_util.h"
 
 namespace lightfarm {
-namespace {
+namespace test_bad_input_cli {
 
 using testing::CliResult;
 using testing::LineCount;
 using testing::RunCli;
+using testing::kQuad;
 using testing::TempDir;
 namespace fs = std::filesystem;
 
@@ -23,10 +24,6 @@ const std::string kHead =
     "Film \"rgb\" \"integer xresolution\" [8] \"integer yresolution\" [8]\n"
     "LookAt 0 0 5  0 0 0  0 1 0\nCamera \"perspective\" \"float fov\" [40]\nWorldBegin\n"
     "LightSource \"point\" \"rgb I\" [5 5 5] \"point3 from\" [0 0 3]\n";  // 5 lines
-const std::string kQuad =
-    "Shape \"trianglemesh\" \"point3 P\" [-1 -1 0 1 -1 0 1 1 0 -1 1 0]"
-    " \"integer indices\" [0 1 2 0 2 3]\n";
-
 // Renders `scene` (a path) and checks the failure contract; `where` must appear in the message.
 void ExpectRenderFails(const TempDir& dir, const std::string& scene, const std::string& where,
                        const std::string& label) {
@@ -173,11 +170,11 @@ TEST(CliOptions, EveryBadOptionIsOneLine) {
   EXPECT_FALSE(fs::exists(dir.Path("o/x.exr")));
 }
 
-}  // namespace
+}  // namespace test_bad_input_cli
 }  // namespace lightfarm
 
 namespace lightfarm {
-namespace {
+namespace test_bad_input_cli {
 
 // Regression: an unwritable --stats used to fail after the EXR and PNG were written, leaving
 // a result that looked complete.
@@ -199,5 +196,5 @@ TEST(BadOutput, UnwritableStatsLeavesNoImageBehind) {
   EXPECT_TRUE(fs::exists(dir.Path("s/new/img.json")));
 }
 
-}  // namespace
+}  // namespace test_bad_input_cli
 }  // namespace lightfarm

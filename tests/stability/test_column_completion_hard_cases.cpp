@@ -17,7 +17,7 @@
 #include "tests/stability/stability_util.h"
 
 namespace lightfarm {
-namespace {
+namespace test_column_completion_hard_cases {
 
 Eigen::VectorXd RandomColumn(int m, Rng& rng) {
   Eigen::VectorXd c(m);
@@ -279,5 +279,5 @@ TEST(AdaptiveCompletionHardCases, ZeroSlicesAndTwelveOrdersOfMagnitude) {
   }
 }
 
-}  // namespace
+}  // namespace test_column_completion_hard_cases
 }  // namespace lightfarm

@@ -12,8 +12,9 @@
 #include "tests/stability/stability_util.h"
 
 namespace lightfarm {
-namespace {
+namespace test_degenerate_geometry {
 
+using testing::kQuad;
 using testing::TempDir;
 
 const char* kHeader =
@@ -21,10 +22,6 @@ const char* kHeader =
     "Integrator \"path\" \"integer maxdepth\" [2]\n"
     "LookAt 0 0 5  0 0 0  0 1 0\nCamera \"perspective\" \"float fov\" [40]\nWorldBegin\n"
     "LightSource \"point\" \"rgb I\" [5 5 5] \"point3 from\" [0 0 3]\n";  // line 6
-
-const std::string kQuad =
-    "Shape \"trianglemesh\" \"point3 P\" [-1 -1 0 1 -1 0 1 1 0 -1 1 0]"
-    " \"integer indices\" [0 1 2 0 2 3]\n";
 
 RenderOutput Render(const TempDir& dir, const std::string& world) {
   RenderSettings s;
@@ -166,5 +163,5 @@ TEST(DegenerateGeometry, DegenerateCameraIsAnError) {
   }
 }
 
-}  // namespace
+}  // namespace test_degenerate_geometry
 }  // namespace lightfarm

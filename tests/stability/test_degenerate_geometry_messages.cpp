@@ -15,7 +15,7 @@
 #include "tests/stability/stability_util.h"
 
 namespace lightfarm {
-namespace {
+namespace test_degenerate_geometry_messages {
 
 using testing::TempDir;
 
@@ -106,5 +106,5 @@ TEST(DegenerateGeometryMessages, PlyMeshWarningsAndErrorsNameTheShapeAndTheFile)
     }
 }
 
-}  // namespace
+}  // namespace test_degenerate_geometry_messages
 }  // namespace lightfarm

@@ -16,7 +16,7 @@
 #include "tests/stability/stability_util.h"
 
 namespace lightfarm {
-namespace {
+namespace test_fuzz_regressions {
 
 namespace fs = std::filesystem;
 
@@ -102,5 +102,5 @@ TEST(FuzzRegressions, TaskOutputWithUnsortedStatsKeysDecodesToTheSortedMap) {
             SerializeTaskOutput(out));
 }
 
-}  // namespace
+}  // namespace test_fuzz_regressions
 }  // namespace lightfarm

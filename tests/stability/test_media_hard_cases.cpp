@@ -19,7 +19,7 @@
 #include "tests/stability/stability_util.h"
 
 namespace lightfarm {
-namespace {
+namespace test_media_hard_cases {
 
 using testing::TempDir;
 
@@ -219,5 +219,5 @@ TEST(MediaHardCases, GridWithOneDenseVoxel) {
   }
 }
 
-}  // namespace
+}  // namespace test_media_hard_cases
 }  // namespace lightfarm

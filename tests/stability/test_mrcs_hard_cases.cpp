@@ -14,7 +14,7 @@
 #include "common/util/rng.h"
 
 namespace lightfarm {
-namespace {
+namespace test_mrcs_hard_cases {
 
 void ExpectValidPartition(const MrcsClustering& c, size_t n) {
   std::vector<int> seen(n, 0);
@@ -140,5 +140,5 @@ TEST(MrcsHardCases, ColumnsSpanningTheWholeFloatRange) {
     }
 }
 
-}  // namespace
+}  // namespace test_mrcs_hard_cases
 }  // namespace lightfarm

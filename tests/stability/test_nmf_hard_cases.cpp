@@ -13,7 +13,7 @@
 #include "common/util/rng.h"
 
 namespace lightfarm {
-namespace {
+namespace test_nmf_hard_cases {
 
 // A nonnegative rank-r matrix, entries of order 1.
 Eigen::MatrixXd LowRank(int m, int n, int r, uint64_t seed) {
@@ -207,5 +207,5 @@ TEST(NmfHardCases, DuplicateObservationsAreAveragedNotSummed) {
   EXPECT_NEAR((r.X * r.Y).minCoeff(), 2.0, 1e-12);
 }
 
-}  // namespace
+}  // namespace test_nmf_hard_cases
 }  // namespace lightfarm

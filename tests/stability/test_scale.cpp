@@ -13,7 +13,7 @@
 #include "tests/stability/stability_util.h"
 
 namespace lightfarm {
-namespace {
+namespace test_scale {
 
 using testing::MeanLuminance;
 using testing::TempDir;
@@ -150,5 +150,5 @@ TEST(Scale, BrightAndDimLightsSumWithoutLoss) {
   EXPECT_GT(worst_float, 3e-6);
 }
 
-}  // namespace
+}  // namespace test_scale
 }  // namespace lightfarm

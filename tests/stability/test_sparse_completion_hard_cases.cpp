@@ -13,7 +13,7 @@
 #include "tests/stability/stability_util.h"
 
 namespace lightfarm {
-namespace {
+namespace test_sparse_completion_hard_cases {
 
 using testing::TempDir;
 
@@ -108,5 +108,5 @@ TEST(SparseCompletionHardCases, ZeroSlicesAndTwelveOrdersOfMagnitude) {
   }
 }
 
-}  // namespace
+}  // namespace test_sparse_completion_hard_cases
 }  // namespace lightfarm

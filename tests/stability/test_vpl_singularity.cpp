@@ -12,7 +12,7 @@
 #include "tests/stability/stability_util.h"
 
 namespace lightfarm {
-namespace {
+namespace test_vpl_singularity {
 
 using testing::BuildSceneFromText;
 
@@ -141,5 +141,5 @@ TEST_F(VplSingularity, DegenerateLightValuesNeverReachTheSum) {
   EXPECT_NEAR(sum.g, 0.5 / M_PI, 1e-6);  // only the good light counts
 }
 
-}  // namespace
+}  // namespace test_vpl_singularity
 }  // namespace lightfarm

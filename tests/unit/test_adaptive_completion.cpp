@@ -16,7 +16,7 @@
 #include "tests/common/test_util.h"
 
 namespace lightfarm {
-namespace {
+namespace test_adaptive_completion {
 
 using testing::Elements;
 using testing::ExpectImagesNear;
@@ -252,5 +252,5 @@ TEST(AdaptiveCompletion, InvalidParametersAreRejected) {
   ok.RejectUnused();  // every parameter was read
 }
 
-}  // namespace
+}  // namespace test_adaptive_completion
 }  // namespace lightfarm

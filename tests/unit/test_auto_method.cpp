@@ -15,7 +15,7 @@
 #include "tests/common/test_util.h"
 
 namespace lightfarm {
-namespace {
+namespace test_auto_method {
 
 // What ComputeEffects gives cornell-box: an area light, direct + indirect, diffuse only.
 Effects SurfaceEffects() {
@@ -114,5 +114,5 @@ TEST(AutoMethod, TheCliDefaultsToAuto) {
   EXPECT_EQ(j["method_rule"], "few lights");
 }
 
-}  // namespace
+}  // namespace test_auto_method
 }  // namespace lightfarm

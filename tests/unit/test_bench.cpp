@@ -19,7 +19,7 @@
 #include "tests/common/test_util.h"
 
 namespace lightfarm {
-namespace {
+namespace test_bench {
 
 using testing::SharedScene;
 using testing::TempDir;
@@ -404,5 +404,5 @@ TEST(BenchSweeps, SettingsReplaceTheTablesLineForOneMethod) {
   EXPECT_THROW(SweepsFor({"mrcs"}, "=10"), OptionError);
 }
 
-}  // namespace
+}  // namespace test_bench
 }  // namespace lightfarm

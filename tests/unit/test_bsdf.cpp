@@ -14,7 +14,7 @@
 #include "common/util/rng.h"
 
 namespace lightfarm {
-namespace {
+namespace test_bsdf {
 
 constexpr TransportMode kRadiance = TransportMode::kRadiance;
 constexpr TransportMode kImportance = TransportMode::kImportance;
@@ -786,11 +786,11 @@ TEST(CreateMaterial, RejectsUnsupportedInput) {
             std::string::npos);
 }
 
-}  // namespace
+}  // namespace test_bsdf
 }  // namespace lightfarm
 
 namespace lightfarm {
-namespace {
+namespace test_bsdf {
 
 // bsdf.h contract used by camera paths: SampleBSDF picks the delta lobe exactly when
 // uc < SpecularSamplingProbability.
@@ -820,5 +820,5 @@ TEST(BsdfContract, SpecularSamplingProbabilitySplitsSmoothCoatedDiffuse) {
   EXPECT_EQ(SpecularSamplingProbability(glass, {0, 0, 1}), 1.f);
 }
 
-}  // namespace
+}  // namespace test_bsdf
 }  // namespace lightfarm

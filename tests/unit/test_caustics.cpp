@@ -14,7 +14,7 @@
 #include "tests/common/test_util.h"
 
 namespace lightfarm {
-namespace {
+namespace test_caustics {
 
 using testing::SphereOverFloor;
 using testing::TempDir;
@@ -144,5 +144,5 @@ TEST(Caustics, SameBitsForAnyThreadCountAndEveryMethodSeesThem) {
   EXPECT_EQ(ac.stats["caustics"]["photons_used"], one.stats["caustics"]["photons_used"]);
 }
 
-}  // namespace
+}  // namespace test_caustics
 }  // namespace lightfarm

@@ -11,7 +11,7 @@
 #include "tests/common/test_util.h"
 
 namespace lightfarm {
-namespace {
+namespace test_clamp_compensation {
 
 using testing::TempDir;
 
@@ -92,5 +92,5 @@ TEST(ClampCompensation, NothingChangesWithoutClampAndItIsDeterministic) {
   EXPECT_EQ(lc.stats["clamp"]["compensation_paths"], one.stats["clamp"]["compensation_paths"]);
 }
 
-}  // namespace
+}  // namespace test_clamp_compensation
 }  // namespace lightfarm

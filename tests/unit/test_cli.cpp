@@ -10,8 +10,9 @@
 #include "tests/common/test_util.h"
 
 namespace lightfarm {
-namespace {
+namespace test_cli {
 
+using testing::kTinyScene;
 using testing::TempDir;
 
 struct CommandResult {
@@ -19,9 +20,11 @@ struct CommandResult {
   std::string out, err;
 };
 
-CommandResult RunCli(const TempDir& dir, const std::string& args) {
+// `env`: VAR=value assignments for the command's environment.
+CommandResult RunCli(const TempDir& dir, const std::string& args, const std::string& env = "") {
   std::string out = dir.Path("stdout.txt"), err = dir.Path("stderr.txt");
-  std::string cmd = std::string(LIGHTFARM_CLI_PATH) + " " + args + " >" + out + " 2>" + err;
+  std::string cmd = (env.empty() ? "" : "env " + env + " ") + std::string(LIGHTFARM_CLI_PATH) + " " +
+                    args + " >" + out + " 2>" + err;
   int status = std::system(cmd.c_str());
   CommandResult r;
   r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
@@ -38,12 +41,6 @@ CommandResult RunCli(const TempDir& dir, const std::string& args) {
 
 size_t Lines(const std::string& s) { return size_t(std::count(s.begin(), s.end(), '\n')); }
 
-const char* kTinyScene =
-    "Film \"rgb\" \"integer xresolution\" [8] \"integer yresolution\" [8]\n"
-    "LookAt 0 0 5  0 0 0  0 1 0\nCamera \"perspective\" \"float fov\" [40]\nWorldBegin\n"
-    "LightSource \"point\" \"rgb I\" [5 5 5] \"point3 from\" [0 0 3]\n"
-    "Shape \"trianglemesh\" \"point3 P\" [-1 -1 0 1 -1 0 1 1 0 -1 1 0] \"integer indices\" [0 1 2 0 2 3]\n";
-
 TEST(Cli, RenderWritesExrPngAndStats) {
   TempDir dir;
   std::string scene = dir.Write("tiny.pbrt", kTinyScene);
@@ -56,6 +53,27 @@ TEST(Cli, RenderWritesExrPngAndStats) {
   nlohmann::json stats = nlohmann::json::parse(f);
   EXPECT_EQ(stats["method"], "brute");
   EXPECT_EQ(stats["resolution"][0], 8);
+}
+
+// OpenImageIO is a module loaded when an image is read or written (common/image/image_io_backend.h).
+TEST(Cli, TheImageModuleLoadsOnlyForImagesAndItsAbsenceFailsBeforeRendering) {
+  TempDir dir;
+  const std::string missing = dir.Path("no-such-module.so");
+  const std::string env = "LIGHTFARM_IMAGEIO_MODULE=" + missing;
+  CommandResult version = RunCli(dir, "--version", env);
+  EXPECT_EQ(version.exit_code, 0) << version.err;
+  EXPECT_EQ(version.out, std::string(LIGHTFARM_VERSION) + "\n");
+
+  std::string scene = dir.Write("tiny.pbrt", kTinyScene);
+  CommandResult r = RunCli(dir, "render " + scene + " --lights 10 --out " + dir.Path("img.exr"), env);
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_EQ(Lines(r.err), 1u) << r.err;
+  EXPECT_NE(r.err.find("liblightfarm_imageio.so"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find(missing + ": no such file"), std::string::npos) << r.err;
+  // It failed before rendering: no progress was shown and nothing was written.
+  EXPECT_EQ(r.err.find("lights"), std::string::npos) << r.err;
+  EXPECT_FALSE(std::filesystem::exists(dir.Path("img.exr")));
+  EXPECT_FALSE(std::filesystem::exists(dir.Path("img.png")));
 }
 
 TEST(Cli, MalformedSceneGivesOneLineWithFileAndLineAndNoOutput) {
@@ -102,5 +120,5 @@ TEST(Cli, CompareReportsMetricsAndJson) {
   EXPECT_EQ(RunCli(dir, "compare --resize " + dir.Path("a.exr") + " " + dir.Path("b.exr")).exit_code, 0);
 }
 
-}  // namespace
+}  // namespace test_cli
 }  // namespace lightfarm

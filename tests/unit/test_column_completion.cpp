@@ -12,7 +12,7 @@
 #include "common/util/rng.h"
 
 namespace lightfarm {
-namespace {
+namespace test_column_completion {
 
 double Gaussian(Rng& rng) {
   const double u1 = 1.0 - rng.UniformDouble(), u2 = rng.UniformDouble();
@@ -307,5 +307,5 @@ TEST(ColumnCompletion, EnergyLossTest) {
   EXPECT_FALSE(FailsEnergyTest(p, 1e12, 1.0, 0.0));  // nothing lost never fails
 }
 
-}  // namespace
+}  // namespace test_column_completion
 }  // namespace lightfarm

@@ -10,7 +10,7 @@
 #include "tests/common/test_util.h"
 
 namespace lightfarm {
-namespace {
+namespace test_emitters {
 
 using testing::TempDir;
 
@@ -133,5 +133,5 @@ TEST(Sampling, EqualAreaMappingRoundTrips) {
   }
 }
 
-}  // namespace
+}  // namespace test_emitters
 }  // namespace lightfarm

@@ -7,7 +7,7 @@
 #include "common/farm/farm_protocol.h"
 
 namespace lightfarm {
-namespace {
+namespace test_farm_protocol {
 
 TEST(FarmProtocol, ScenePathsStayInsideTheSceneDirectory) {
   for (const char* ok : {"scene.pbrt", "meshes/bunny.ply", "tex/a..b.png", "a/b/c/..d", "..hidden", "x..", "a.b"})
@@ -20,5 +20,5 @@ TEST(FarmProtocol, ScenePathsStayInsideTheSceneDirectory) {
   EXPECT_TRUE(IsSafeScenePath(std::string(4096, 'a')));
 }
 
-}  // namespace
+}  // namespace test_farm_protocol
 }  // namespace lightfarm

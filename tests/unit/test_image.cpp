@@ -24,7 +24,7 @@
 #include "common/util/rng.h"
 
 namespace lightfarm {
-namespace {
+namespace test_image {
 
 namespace fs = std::filesystem;
 
@@ -676,5 +676,5 @@ TEST(SharedReference, CornellBoxReferenceReads) {
   EXPECT_NEAR(small.MeanLuminance(), mean, 1e-3 * mean);
 }
 
-}  // namespace
+}  // namespace test_image
 }  // namespace lightfarm

@@ -11,7 +11,7 @@
 #include "common/util/rng.h"
 
 namespace lightfarm {
-namespace {
+namespace test_light_tree {
 
 Vec3 RandomUnit(Rng& rng) {
   float z = 1 - 2 * rng.Uniform(), phi = 2 * kPi * rng.Uniform();
@@ -266,5 +266,5 @@ TEST(LightTree, BuildsHundredThousandLightsQuickly) {
   EXPECT_LT(seconds, 3.0);
 }
 
-}  // namespace
+}  // namespace test_light_tree
 }  // namespace lightfarm

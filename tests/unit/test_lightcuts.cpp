@@ -13,7 +13,7 @@
 #include "tests/common/test_util.h"
 
 namespace lightfarm {
-namespace {
+namespace test_lightcuts {
 
 using testing::Elements;
 using testing::ExpectImagesNear;
@@ -123,5 +123,5 @@ TEST(Lightcuts, RejectsInvalidParameters) {
   EXPECT_THROW(Render(scene, "lightcuts", {"max_cut=0"}, 10, 4), OptionError);
 }
 
-}  // namespace
+}  // namespace test_lightcuts
 }  // namespace lightfarm

@@ -22,7 +22,7 @@
 #include "tests/common/test_util.h"
 
 namespace lightfarm {
-namespace {
+namespace test_lightslice {
 
 using testing::ExpectImagesNear;
 using testing::TempDir;
@@ -347,5 +347,5 @@ TEST(LightSlice, RejectsInvalidParameters) {
   ok.RejectUnused();  // every parameter was read
 }
 
-}  // namespace
+}  // namespace test_lightslice
 }  // namespace lightfarm

@@ -10,7 +10,7 @@
 #include "tests/common/test_util.h"
 
 namespace lightfarm {
-namespace {
+namespace test_matrix_fast_path {
 
 bool SameBits(RGB a, RGB b) { return std::memcmp(&a, &b, sizeof(RGB)) == 0; }
 
@@ -88,5 +88,5 @@ TEST(MatrixFastPath, VolumetricCausticSameBitsAsGeneralPath) {
   EXPECT_GT(CompareFastAndGeneral("volumetric-caustic", 2000), 100u);
 }
 
-}  // namespace
+}  // namespace test_matrix_fast_path
 }  // namespace lightfarm

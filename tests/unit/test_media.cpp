@@ -15,7 +15,7 @@
 #include "tests/common/test_util.h"
 
 namespace lightfarm {
-namespace {
+namespace test_media {
 
 // Upper critical value of chi-square with k degrees of freedom at p ≈ 1e-4 (Wilson–Hilferty).
 double ChiSquareCritical(int k) {
@@ -427,5 +427,5 @@ TEST(Media, SceneErrorsNameFileAndLine) {
       "test.pbrt:5:", "\"g\" must lie in (-1, 1)");
 }
 
-}  // namespace
+}  // namespace test_media
 }  // namespace lightfarm

@@ -13,7 +13,7 @@
 #include "tests/common/test_util.h"
 
 namespace lightfarm {
-namespace {
+namespace test_media_segments {
 
 constexpr float kSigmaA = 0.3f, kSigmaS = 0.9f, kG = 0.4f;
 
@@ -170,5 +170,5 @@ TEST(MediaElements, MediumVPLToSurfacePoint) {
   EXPECT_EQ(c.transmittance_evals, 1u);
 }
 
-}  // namespace
+}  // namespace test_media_segments
 }  // namespace lightfarm

@@ -11,7 +11,7 @@
 #include "tests/common/test_util.h"
 
 namespace lightfarm {
-namespace {
+namespace test_media_transport {
 
 using testing::TempDir;
 
@@ -81,11 +81,11 @@ TEST(MediaTransport, SurfaceOnlySceneDoesNoMediaWork) {
   for (const RGB& p : out.image.pixels) ASSERT_NEAR(p.g, 0.5f, 1e-5f);
 }
 
-}  // namespace
+}  // namespace test_media_transport
 }  // namespace lightfarm
 
 namespace lightfarm {
-namespace {
+namespace test_media_transport {
 
 // The media scene under brute with medium VPLs (media_lights=vpl; VRLs are the default and
 // tested in test_vrl.cpp): eye segments (h + 1 per ray in the gas) and medium VPLs exist,
@@ -110,5 +110,5 @@ TEST(MediaTransport, MediaSceneHasSegmentsAndMediumLights) {
   EXPECT_GT(sum, 0.0);
 }
 
-}  // namespace
+}  // namespace test_media_transport
 }  // namespace lightfarm

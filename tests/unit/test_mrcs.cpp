@@ -17,7 +17,7 @@
 #include "tests/common/test_util.h"
 
 namespace lightfarm {
-namespace {
+namespace test_mrcs {
 
 // Entries uniform in [0, 1): a dense non-negative "reduced matrix".
 Eigen::MatrixXf RandomMatrix(int rows, int cols, uint64_t seed) {
@@ -363,5 +363,5 @@ TEST(Mrcs, RejectsInvalidParameters) {
   EXPECT_EQ(CreateGatherMethod("mrcs", OptionMap())->stage_count(), 2);
 }
 
-}  // namespace
+}  // namespace test_mrcs
 }  // namespace lightfarm

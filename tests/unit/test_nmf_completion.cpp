@@ -10,7 +10,7 @@
 #include "common/util/rng.h"
 
 namespace lightfarm {
-namespace {
+namespace test_nmf_completion {
 
 double Gaussian(Rng& rng) {
   const double u1 = 1.0 - rng.UniformDouble(), u2 = rng.UniformDouble();
@@ -240,5 +240,5 @@ TEST(NmfCompletion, InvalidArgumentsThrow) {
                std::invalid_argument);
 }
 
-}  // namespace
+}  // namespace test_nmf_completion
 }  // namespace lightfarm

@@ -14,7 +14,7 @@
 #include "common/scene/scene_description.h"
 
 namespace lightfarm {
-namespace {
+namespace test_parser {
 
 namespace fs = std::filesystem;
 
@@ -825,5 +825,5 @@ TEST(SharedScenesTest, VolumetricCaustic) {
   EXPECT_EQ(*sphere.params.GetOneRGB("eta", SpectrumType::kUnbounded), RGB(1.5f));
 }
 
-}  // namespace
+}  // namespace test_parser
 }  // namespace lightfarm

@@ -16,7 +16,7 @@
 #include "tests/common/test_util.h"
 
 namespace lightfarm {
-namespace {
+namespace test_path_tracer {
 
 using testing::TempDir;
 
@@ -259,5 +259,5 @@ TEST(PathTracer, RejectsUnknownStrategyAndMatrixOnlyParameters) {
   EXPECT_THROW(RenderScene(path, s), OptionError);
 }
 
-}  // namespace
+}  // namespace test_path_tracer
 }  // namespace lightfarm

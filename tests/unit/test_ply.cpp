@@ -21,7 +21,7 @@
 #include "common/util/error.h"
 
 namespace lightfarm {
-namespace {
+namespace test_ply {
 
 namespace fs = std::filesystem;
 
@@ -542,5 +542,5 @@ TEST(PlySharedMeshes, WaterCausticMeshesLoad) {
   for (Vec3 n : mesh001.normals) ASSERT_NEAR(Length(n), 1.f, 1e-2f);
 }
 
-}  // namespace
+}  // namespace test_ply
 }  // namespace lightfarm

@@ -11,7 +11,7 @@
 #include "tests/common/test_util.h"
 
 namespace lightfarm {
-namespace {
+namespace test_render_analytic {
 
 using testing::TempDir;
 
@@ -224,11 +224,11 @@ TEST(RenderErrors, UnknownMethodAndParamAreOptionErrors) {
   EXPECT_THROW(RenderScene(path, s), OptionError);
 }
 
-}  // namespace
+}  // namespace test_render_analytic
 }  // namespace lightfarm
 
 namespace lightfarm {
-namespace {
+namespace test_render_analytic {
 
 // The matrix refers to the plan's receivers and lights; moving a plan must keep it valid.
 TEST(Plan, MovedPlanRendersTheSameImage) {
@@ -249,5 +249,5 @@ TEST(Plan, MovedPlanRendersTheSameImage) {
   }
 }
 
-}  // namespace
+}  // namespace test_render_analytic
 }  // namespace lightfarm

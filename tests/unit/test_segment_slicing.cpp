@@ -13,7 +13,7 @@
 #include "tests/common/test_util.h"
 
 namespace lightfarm {
-namespace {
+namespace test_segment_slicing {
 
 // A camera looking into a fog sphere of radius 20 with a diffuse ball behind its centre.
 std::unique_ptr<Scene> FogScene(int res) {
@@ -291,5 +291,5 @@ TEST(SegmentSlicing, SplitHalvesCarryTheTransmittanceOfTheFirstHalf) {
   EXPECT_GT(checked, 0u);
 }
 
-}  // namespace
+}  // namespace test_segment_slicing
 }  // namespace lightfarm

@@ -11,7 +11,7 @@
 #include "common/farm/serialize.h"
 
 namespace lightfarm {
-namespace {
+namespace test_serialize {
 
 LightSet SampleLights() {
   LightSet set;
@@ -226,5 +226,5 @@ TEST(Serialize, EveryTruncationAndRandomCorruptionFailsCleanly) {
   }
 }
 
-}  // namespace
+}  // namespace test_serialize
 }  // namespace lightfarm

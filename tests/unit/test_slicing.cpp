@@ -15,7 +15,7 @@
 #include "tests/common/test_util.h"
 
 namespace lightfarm {
-namespace {
+namespace test_slicing {
 
 // Receivers on the six faces of a unit box (normals pointing inwards), like a Cornell box.
 ReceiverSet BoxReceivers(size_t n, uint64_t seed) {
@@ -172,5 +172,5 @@ TEST(Slicing, PlanUsesSlicesAndBruteForceIgnoresThem) {
     ASSERT_EQ(small.image.pixels[i], large.image.pixels[i]) << "pixel " << i;
 }
 
-}  // namespace
+}  // namespace test_slicing
 }  // namespace lightfarm

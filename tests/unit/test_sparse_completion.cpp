@@ -15,7 +15,7 @@
 #include "tests/common/test_util.h"
 
 namespace lightfarm {
-namespace {
+namespace test_sparse_completion {
 
 using testing::Elements;
 using testing::ExpectImagesNear;
@@ -174,5 +174,5 @@ TEST(SparseCompletion, InvalidParametersAreRejected) {
   ok.RejectUnused();  // every parameter was read
 }
 
-}  // namespace
+}  // namespace test_sparse_completion
 }  // namespace lightfarm

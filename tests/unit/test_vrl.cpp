@@ -21,7 +21,7 @@
 #include "tests/common/test_util.h"
 
 namespace lightfarm {
-namespace {
+namespace test_vrl {
 
 constexpr double kPiD = 3.14159265358979323846;
 constexpr double kSigmaA = 0.3, kSigmaS = 0.9, kSigmaT = kSigmaA + kSigmaS, kEyeG = 0.4;
@@ -525,5 +525,5 @@ TEST(VrlLightTree, SerializationKeepsVrls) {
   EXPECT_EQ(back.stats.vrls, 1u);
 }
 
-}  // namespace
+}  // namespace test_vrl
 }  // namespace lightfarm
