@@ -7,10 +7,12 @@
 # never edit the output by hand: re-run.
 #
 # Usage: scripts/report-truth.sh [--quick]
-#   (none)   48² (veach-mis 64×36), 4 spp, 2000 and 10000 lights, 3 repeats; media scenes 32²,
-#            1000 and 4000 lights, adaptive-completion, sparse-completion and path; path-traced
-#            truths to 1% rel_l1 noise or 5 minutes (about an hour on 2 cores)
-#   --quick  32² (veach-mis 48×27), 4 spp, 1000 and 4000 lights, 1 repeat, truths to 3% or 1 minute
+#   (none)   48² (veach-mis 64×36), 4 spp, 2000 and 10000 lights, and 16 spp at 10000 lights,
+#            3 repeats; media scenes 32², 1000 and 4000 lights, adaptive-completion,
+#            sparse-completion and path; path-traced truths to 1% rel_l1 noise or 5 minutes (about
+#            an hour and a half on 2 cores)
+#   --quick  32² (veach-mis 48×27), 4 spp, 1000 and 4000 lights, and 16 spp at 4000 lights,
+#            1 repeat, truths to 3% or 1 minute
 # A truth that stops at its time limit says so, with the noise it reached (volumetric-caustic:
 # a small, very bright light seen through glass is where unidirectional path tracing is weakest).
 # The many-light methods render 4 camera samples per pixel (a user would not compare 1 spp, all
@@ -40,45 +42,62 @@ rm -rf "$assets.tmp"
 mkdir -p "$work" "$assets.tmp"
 
 spp=4
+# The surface scenes are also benched at more camera samples (`more_spp`, the larger light count
+# only): at 4 spp the many-light methods' floor includes aliasing that path's 1024 spp does not
+# have. Each camera-sample count has its own same-lights brute-force reference.
 if [ $quick = 1 ]; then
   res=32x32; wide=48x27; lights=1000,4000; media_lights=1000,4000; repeats=1; noise=0.03; truth_s=60
-  media_res=24x24
+  media_res=24x24; more_spp=16; more_lights=4000
 else
   res=48x48; wide=64x36; lights=2000,10000; media_lights=1000,4000; repeats=3; noise=0.01; truth_s=300
+  more_spp=16; more_lights=10000
 fi
+surface_methods=mrcs,lightcuts,sparse-completion,lightslice,adaptive-completion
 [ $quick = 1 ] || media_res=32x32
 # On media scenes: the media method the product exists for, the other completion method, and
 # path (lightcuts bounds surface elements only, gather.h; mrcs and lightslice gather media too
 # but are left out for time: add them here for a longer run).
 media_methods=adaptive-completion,sparse-completion,path
 
-# name | scene file | resolution | lights | truth | methods ("" = every swept method)
+# name | scene file | resolution | lights | truth | methods ("" = every swept method) | more spp
 # veach-mis and volumetric-caustic: their reference.exr does not show what the file describes
 # (docs/reference-accuracy.md), so the truth is path-traced here.
 scenes=(
-  "cornell-box|$shared/scenes/cornell-box/scene.pbrt|$res|$lights||"
-  "veach-mis|$shared/scenes/veach-mis/scene.pbrt|$wide|$lights|path|"
-  "water-caustic|$shared/scenes/water-caustic/scene.pbrt|$res|$lights||"
-  "volumetric-caustic|$shared/scenes/volumetric-caustic/scene.pbrt|$media_res|$media_lights|path|$media_methods"
-  "project-cornell-box|$root/scenes/cornell-box/scene.pbrt|$res|$lights|path|"
-  "project-cloud|$root/scenes/cloud/scene.pbrt|$media_res|$media_lights|path|$media_methods"
+  "cornell-box|$shared/scenes/cornell-box/scene.pbrt|$res|$lights|||$more_spp"
+  "veach-mis|$shared/scenes/veach-mis/scene.pbrt|$wide|$lights|path||$more_spp"
+  "water-caustic|$shared/scenes/water-caustic/scene.pbrt|$res|$lights|||$more_spp"
+  "volumetric-caustic|$shared/scenes/volumetric-caustic/scene.pbrt|$media_res|$media_lights|path|$media_methods|"
+  "project-cornell-box|$root/scenes/cornell-box/scene.pbrt|$res|$lights|path||$more_spp"
+  "project-cloud|$root/scenes/cloud/scene.pbrt|$media_res|$media_lights|path|$media_methods|"
 )
 
 skipped=()
+# run TAG SCENE-ARGS...: one bench into $work/TAG, its log and its wall time beside it.
+run() {
+  local tag=$1; shift
+  local cmd=("$lf" bench "$@" --out-dir "$work/$tag" --threads "$threads" --repeats "$repeats"
+             --truth-noise "$noise" --truth-max-seconds "$truth_s")
+  echo "+ ${cmd[*]}" >&2
+  local t0=$SECONDS
+  if "${cmd[@]}" 2> "$work/$tag.log"; then
+    echo "$((SECONDS - t0))" > "$work/$tag.seconds"
+  else
+    skipped+=("$tag: $(tr '\r' '\n' < "$work/$tag.log" | grep -v '^\s*$' | tail -1)")
+  fi
+}
 for entry in "${scenes[@]}"; do
-  IFS='|' read -r name file r l truth methods <<< "$entry"
+  IFS='|' read -r name file r l truth methods extra_spp <<< "$entry"
   if [ -n "${LIGHTFARM_TRUTH_SCENES:-}" ] && [[ " $LIGHTFARM_TRUTH_SCENES " != *" $name "* ]]; then continue; fi
   [ "$report_only" = 1 ] && continue
-  cmd=("$lf" bench "$file" --out-dir "$work/$name" --threads "$threads" --resolution "$r" --lights "$l"
-       --spp "$spp" --repeats "$repeats" --truth-noise "$noise" --truth-max-seconds "$truth_s")
-  [ -n "$truth" ] && cmd+=(--truth "$truth")
-  [ -n "$methods" ] && cmd+=(--methods "$methods")
-  echo "+ ${cmd[*]}" >&2
-  t0=$SECONDS
-  if "${cmd[@]}" 2> "$work/$name.log"; then
-    echo "$((SECONDS - t0))" > "$work/$name.seconds"
-  else
-    skipped+=("$name: $(tr '\r' '\n' < "$work/$name.log" | grep -v '^\s*$' | tail -1)")
+  args=("$file" --resolution "$r" --lights "$l" --spp "$spp")
+  [ -n "$truth" ] && args+=(--truth "$truth")
+  [ -n "$methods" ] && args+=(--methods "$methods")
+  run "$name" "${args[@]}"
+  if [ -n "$extra_spp" ]; then
+    # The same truth (cached), the many-light methods only (path's samples are its own sweep).
+    args=("$file" --resolution "$r" --lights "$more_lights" --spp "$extra_spp" --methods "$surface_methods")
+    [ -n "$truth" ] && args+=(--truth "$truth")
+    run "$name@${extra_spp}spp" "${args[@]}"
   fi
 done
 
@@ -104,13 +123,13 @@ def medians(tag):
     g = defaultdict(list)
     with open(os.path.join(work, tag, "results.csv")) as f:
         for r in csv.DictReader(f):
-            g[(int(r["lights"]), r["method"], r["setting"].replace(" ", ","))].append(r)
+            g[(int(r["lights"]), int(r["spp"]), r["method"], r["setting"].replace(" ", ","))].append(r)
     rows = []
-    for (l, m, s), v in g.items():
+    for (l, spp, m, s), v in g.items():
         def med(k):
             xs = [num(x[k]) for x in v if num(x[k]) is not None]
             return statistics.median(xs) if xs else None
-        rows.append(dict(lights=l, method=m, setting=s, time=med("time_total_s"), l1=med("truth_rel_l1"),
+        rows.append(dict(lights=l, spp=spp, method=m, setting=s, time=med("time_total_s"), l1=med("truth_rel_l1"),
                          l2=med("truth_rel_l2"), ff=med("fireflies"), brute_l1=med("rel_l1"), runs=len(v)))
     return rows
 
@@ -125,10 +144,13 @@ def fastest(rows, method, target):
 def desc(r):
     if r is None:
         return "—"
-    where = "" if r["method"] == "path" else f"{r['lights']} lights, "
+    where = "" if r["method"] == "path" else f"{r['lights']} lights, {r['spp']} spp, "
     return f"{r['method']} ({where}`{r['setting']}`): {r['l1']:.4f} in {r['time']:.3g} s"
 
-tags = [t for t in sorted(os.listdir(work)) if os.path.exists(os.path.join(work, t, "report.md"))]
+# A scene's benches: TAG, and TAG@Nspp for its many-light methods at N camera samples per pixel.
+benches = [t for t in sorted(os.listdir(work)) if os.path.exists(os.path.join(work, t, "report.md"))]
+tags = [t for t in benches if "@" not in t]
+variants = {t: [v for v in benches if v.startswith(t + "@")] for t in tags}
 order = ["cornell-box", "veach-mis", "water-caustic", "volumetric-caustic", "project-cornell-box", "project-cloud"]
 tags.sort(key=lambda t: order.index(t) if t in order else len(order))
 
@@ -152,7 +174,9 @@ md += ["", "A user picks a many-light renderer to get a better image in less tim
        "- Brute force against the truth is the virtual lights' own error (their count, the clamp, and "
        "the transport they cannot carry: caustics seen directly, sharp glossy lobes); a method cannot "
        "do better than brute force with its lights.",
-       "- The many-light methods render 4 camera samples per pixel (`--spp 4`); `path`'s samples are its knob.",
+       "- The many-light methods render 4 camera samples per pixel (`--spp 4`) at every light count and, "
+       "on the surface scenes, 16 at the larger light count (each with its own same-lights brute-force "
+       "reference); `path`'s samples are its knob.",
        "- Times are wall times of the whole render (parse, lights, receivers, gather, film) in one "
        "process on this 2-core machine, medians over the repeats.",
        ""]
@@ -167,6 +191,8 @@ md += ["## Summary", "",
 per_scene = {}
 for tag in tags:
     rows = medians(tag)
+    for v in variants[tag]:
+        rows += [r for r in medians(v) if r["method"] != "brute"]
     per_scene[tag] = rows
     timed = [r["time"] for r in rows if r["method"] != "brute" and r["l1"] is not None]
     if not timed:
@@ -189,9 +215,9 @@ md += ["", "`level`: within 10% of each other. Where a verdict says `path wins`,
        "",
        "What these tables do not settle:",
        "",
-       "- The many-light methods' camera samples are fixed at 4 per pixel, so their floor includes 4-spp "
-       "aliasing at edges and around visible lights, which `path`'s 1024 spp does not have; the bench "
-       "does not yet sweep their spp (a list of spp values with a same-lights reference each).",
+       "- The many-light methods are measured at 4 and 16 camera samples per pixel, not more: at 16 "
+       "their floor still includes aliasing at edges and around visible lights that `path`'s 1024 spp "
+       "averages away.",
        "- Small images favour `path`: its cost is per pixel, while light generation and clustering are "
        "fixed costs of the many-light methods that larger images amortise.",
        "- A path-traced truth that stopped at its time limit (volumetric-caustic: a tiny, very bright "
@@ -202,19 +228,12 @@ if skipped:
     md += ["", "Failed or interrupted benches (last line of their log):", ""]
     md += [f"- {s}" for s in skipped]
 
-for tag in tags:
-    d = os.path.join(work, tag)
-    report = open(os.path.join(d, "report.md")).read()
-    cmd = re.search(r"- command: `([^`]*)`", report)
-    secs_file = os.path.join(work, tag + ".seconds")
-    secs = open(secs_file).read().strip() if os.path.exists(secs_file) else "?"
-    md += ["", f"## {tag}", "", f"`{cmd.group(1) if cmd else '?'}` ({secs} s)", ""]
+def section_of(tag, d, report, heading_level):
     m = re.search(r"## Against the truth\n(.*?)(?=\n## |\Z)", report, re.S)
     if not m:
-        md.append("(no truth in this bench)")
-        continue
-    section = m.group(1).replace("\n### ", "\n#### ")
-    # Images into docs/truth/<scene>/, links rewritten.
+        return None
+    section = m.group(1).replace("\n### ", "\n" + "#" * heading_level + " ")
+    # Images into docs/truth/<bench>/, links rewritten.
     dst = os.path.join(assets, tag)
     os.makedirs(dst, exist_ok=True)
     def move(match):
@@ -225,8 +244,27 @@ for tag in tags:
         flat = rel.replace("/", "_")
         shutil.copy(src, os.path.join(dst, flat))
         return f"{match.group(1)}({asset_rel}/{tag}/{flat})"
-    section = re.sub(r"(!\[[^\]]*\])\(([^)]+)\)", move, section)
-    md.append(section.strip())
+    return re.sub(r"(!\[[^\]]*\])\(([^)]+)\)", move, section).strip()
+
+def command_of(tag, report):
+    cmd = re.search(r"- command: `([^`]*)`", report)
+    secs_file = os.path.join(work, tag + ".seconds")
+    secs = open(secs_file).read().strip() if os.path.exists(secs_file) else "?"
+    return f"`{cmd.group(1) if cmd else '?'}` ({secs} s)"
+
+for tag in tags:
+    d = os.path.join(work, tag)
+    report = open(os.path.join(d, "report.md")).read()
+    md += ["", f"## {tag}", "", command_of(tag, report), ""]
+    section = section_of(tag, d, report, 4)
+    md.append(section if section else "(no truth in this bench)")
+    for v in variants[tag]:
+        vreport = open(os.path.join(work, v, "report.md")).read()
+        spp = v.split("@", 1)[1]
+        md += ["", f"### {tag} at {spp.replace('spp', ' camera samples per pixel')}", "",
+               command_of(v, vreport), ""]
+        vsection = section_of(v, os.path.join(work, v), vreport, 5)
+        md.append(vsection if vsection else "(no truth in this bench)")
 
 with open(out, "w") as f:
     f.write("\n".join(md) + "\n")

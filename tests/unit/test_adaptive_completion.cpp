@@ -114,8 +114,11 @@ TEST(AdaptiveCompletion, FullSamplingEqualsBruteForceInMedia) {
   // Both kinds of media lights (VRLs by default, medium VPLs), with and without refinement.
   for (const char* media_lights : {"vrl", "vpl"})
   for (const char* refine : {"segment_refine=0", "segment_refine=1"}) {
+    // No caustic photons: they add the same light to every method (test_caustics.cpp) and would
+    // take most of the time here.
     const std::vector<std::string> common = {"segment_rows_per_slice=100", refine,
-                                             std::string("media_lights=") + media_lights};
+                                             std::string("media_lights=") + media_lights,
+                                             "caustic_photons=0"};
     RenderOutput brute = Render(scene, "brute", common, 300, 16);
     ASSERT_GT(brute.stats["receivers"]["segments"].get<int>(), 200);
     ASSERT_GT(brute.stats["lights"][media_lights == std::string("vrl") ? "vrl" : "medium_vpl"].get<int>(), 0);
@@ -140,7 +143,8 @@ TEST(AdaptiveCompletion, FullSamplingEqualsBruteForceInMedia) {
 // image's medium; 64², 2000 lights, default slices: 0.013 with 16%).
 TEST(AdaptiveCompletion, NearLightsKeepMediaAccurate) {
   const std::string scene = testing::SharedScene("volumetric-caustic");
-  const std::vector<std::string> slices = {"rows_per_slice=300", "segment_rows_per_slice=300"};
+  const std::vector<std::string> slices = {"rows_per_slice=300", "segment_rows_per_slice=300",
+                                           "caustic_photons=0"};  // the method's own error only
   std::vector<std::string> without_params = slices;
   without_params.push_back("near_distance=0");
   RenderOutput brute = Render(scene, "brute", slices, 1000, 24);

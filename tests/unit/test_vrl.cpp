@@ -276,12 +276,15 @@ TEST(VrlElements, DepthBudgetAndDeterminism) {
 
 // --- Generation, plan switch and gather methods on a media scene -------------------------------
 
+// Without caustic photons (test_caustics.cpp): they are not what these tests are about and would
+// take most of their time.
 RenderOutput RenderCaustic(const std::string& method, std::vector<std::string> params) {
   RenderSettings s;
   s.method = method;
   s.width = s.height = 16;
   s.lights = 300;
   s.params = std::move(params);
+  s.params.push_back("caustic_photons=0");
   return RenderScene(testing::SharedScene("volumetric-caustic"), s);
 }
 
