@@ -1,4 +1,4 @@
-// Coordinator lease throughput (the farm issue's benchmark): a real coordinator and gRPC server on
+// Coordinator lease throughput: a real coordinator and gRPC server on
 // loopback, a job of many one-row tasks, and N client threads that act as workers doing no work:
 // Register, then LeaseTask → CompleteTask (a valid all-zero result) until the job is done. What
 // is measured is the coordinator's side of a task's life (lease, SQLite attempt record, result

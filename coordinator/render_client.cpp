@@ -5,6 +5,7 @@
 #include <fstream>
 #include <thread>
 
+#include "common/farm/farm_protocol.h"
 #include "common/farm/proto_convert.h"
 #include "common/scene/scene_description.h"
 #include "common/util/error.h"
@@ -16,8 +17,6 @@ namespace lightfarm {
 namespace fs = std::filesystem;
 
 namespace {
-
-constexpr size_t kChunkBytes = 1 << 20;
 
 std::string ReadAll(const std::string& path) {
   std::ifstream f(path, std::ios::binary);

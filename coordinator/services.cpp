@@ -8,13 +8,13 @@
 #include <fstream>
 #include <set>
 
+#include "common/farm/farm_protocol.h"
 #include "common/farm/proto_convert.h"
 
 namespace lightfarm {
 
 namespace {
 
-constexpr size_t kChunkBytes = 1 << 20;
 constexpr int kMaxMessageBytes = 64 << 20;
 
 grpc::Status ToStatus(const FarmError& e) {

@@ -11,6 +11,7 @@
 # Env: LIGHTFARM_BUILD (build dir, default build), REPEATS (default 3)
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
+. "$root/scripts/report-lib.sh"
 build=${LIGHTFARM_BUILD:-$root/build}
 repeats=${REPEATS:-3}
 res=128x128; lights=30000
@@ -106,4 +107,5 @@ md += [
 ]
 open(out, "w").write("\n".join(md))
 PY
+repo_relative "$root/docs/farm-benchmark.md"
 echo "wrote docs/farm-benchmark.md" >&2

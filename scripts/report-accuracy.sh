@@ -1,16 +1,16 @@
 #!/usr/bin/env bash
 # Generates docs/accuracy.md and its plots (docs/accuracy/) from `lightfarm bench` runs on the
-# shared scenes, plus the issue-3 surface-methods table (cornell-box and veach-mis, two
+# shared scenes, plus the surface-methods table (cornell-box and veach-mis, two
 # resolutions, three light counts). Every number comes from a bench this script runs; the
 # command, machine and commit are written beside it. Never edit the output by hand: re-run.
 #
 # Usage: scripts/report-accuracy.sh [--quick | --standard | --surface]
 #   --quick     CI-sized: 32x32 and 48x48, 10^3/10^4 lights, 1 repeat (minutes)
 #   --standard  256x256 and 384x384, 10^4/10^5 lights, 1 repeat, 1024 reference pixels (hours)
-#   --surface   only the issue-3 surface table, into docs/surface-methods.md: cornell-box and
+#   --surface   only the surface-methods table, into docs/surface-methods.md: cornell-box and
 #               veach-mis at 256x256 with 10^4/10^5/10^6 lights and 384x384 with 10^4/10^5,
 #               1 repeat, 1024 reference pixels (about two hours on 2 cores)
-#   --media     only the issue-4 media table, into docs/media-methods.md: volumetric-caustic and
+#   --media     only the media-methods table, into docs/media-methods.md: volumetric-caustic and
 #               the cloud scene at 256x256 with 1000, 4000 and 16000 lights, adaptive-completion
 #               (rho=0.1,sigma=0.01 with near_distance 0.05 and 0.1, rho=0.2,sigma=0.002) against
 #               brute force, 1 repeat, 1024 reference pixels (about an hour on 2 cores, references
@@ -25,6 +25,7 @@
 #      LIGHTFARM_BENCH_COMMIT names the commit the benches were built from)
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
+. "$root/scripts/report-lib.sh"
 shared=${LIGHTFARM_SHARED:-$(cd "$root/.." && pwd)/shared}
 build=${LIGHTFARM_BUILD:-$root/build}
 threads=${LIGHTFARM_THREADS:-0}
@@ -51,7 +52,7 @@ report_only=${LIGHTFARM_REPORT_ONLY:-0}
 rm -rf "$assets.tmp"
 mkdir -p "$work" "$assets.tmp"
 
-# The surface table (issue 3) reuses the accuracy benches of cornell-box and veach-mis for its
+# The surface table reuses the accuracy benches of cornell-box and veach-mis for its
 # first resolution and adds one larger resolution.
 if [ $quick = 1 ]; then
   acc_res=32x32; lights=1000,10000; repeats=1; ref_pixels=256; surf_res=48x48
@@ -164,18 +165,18 @@ if quick:
               "`scripts/report-accuracy.sh` (256² and 512², 10⁴–10⁶ lights, 3 repeats).")
 if mode == "surface":
     md.append("")
-    md.append("**Surface mode** (the issue-3 table: cornell-box and veach-mis at 256² with 10⁴–10⁶ lights "
+    md.append("**Surface mode** (cornell-box and veach-mis at 256² with 10⁴–10⁶ lights "
               "and 384² with 10⁴–10⁵ lights, one repeat, errors on 1024 seeded reference pixels). The "
               "media scenes and the other plots are in [accuracy.md](accuracy.md).")
 if mode == "media":
     md.append("")
-    md.append(f"**Media mode** (the issue-4 table: volumetric-caustic and the cloud scene at {os.environ['LIGHTFARM_ACC_RES']} with "
+    md.append(f"**Media mode** (volumetric-caustic and the cloud scene at {os.environ['LIGHTFARM_ACC_RES']} with "
               f"{' and '.join(os.environ['LIGHTFARM_ACC_LIGHTS'].split(','))} lights, adaptive-completion's ρ/σ settings against brute force with the same "
               "lights, one repeat, errors on 1024 seeded reference pixels).")
 if mode == "standard":
     md.append("")
     md.append("**Standard mode** (256² and 384² images, 10⁴–10⁵ lights, one repeat, errors on 1024 "
-              "seeded reference pixels): the issue's sizes up to 10⁵ lights; 10⁶ lights and 3 repeats "
+              "seeded reference pixels): sizes up to 10⁵ lights; 10⁶ lights and 3 repeats "
               "are the full run, `scripts/report-accuracy.sh`.")
 md.append("")
 md.append("Errors are rel_l2 / rel_l1 against brute force with the same lights, receivers and seed. "
@@ -221,10 +222,10 @@ for tag in sorted(t for t in os.listdir(work) if t.startswith("acc-") and os.pat
     md.append(f"\n({secs(tag)} s for the whole bench; raw rows: [results.csv]({asset_rel}/{scene}/results.csv))")
     md.append(text)
 
-# --- issue 4: media ---------------------------------------------------------------------------
+# --- media methods ---------------------------------------------------------------------------
 if mode == "media":
     md.append("")
-    md.append("## Targets (issue 4)")
+    md.append("## Targets")
     md.append("")
     md.append("Target 1: at ≤ 2% rel_l1, adaptive-completion ≥ 20× faster than brute force (same lights; "
               "brute force's time extrapolated from its reference pixels, *est.*). Target 2: at 4× the "
@@ -278,9 +279,9 @@ if mode == "media":
     open(out, "w").write("\n".join(md) + "\n")
     sys.exit(0)
 
-# --- issue 3: surface methods ---------------------------------------------------------------
+# --- surface methods ---------------------------------------------------------------
 md.append("")
-md.append("## Surface methods (issue 3)")
+md.append("## Surface methods")
 md.append("")
 md.append("cornell-box and veach-mis at two resolutions and three light counts: for each method "
           "and budget, time, shadow rays per pixel and error against brute force with the same lights.")
@@ -367,5 +368,6 @@ open(out, "w").write("\n".join(md) + "\n")
 PY
 rm -rf "$assets"
 mv "$assets.tmp" "$assets"
+repo_relative "$out.tmp"
 mv "$out.tmp" "$out"
 echo "wrote $out and $assets/" >&2

@@ -11,6 +11,7 @@
 #      THREADS (default 2)
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
+. "$root/scripts/report-lib.sh"
 build=${LIGHTFARM_BUILD:-$root/build}
 methods=${METHODS:-brute mrcs}
 threads=${THREADS:-2}
@@ -96,4 +97,5 @@ out.append("Known per-light data (sizes, not measured separately): VirtualLight 
            "so small series are noisy.")
 print("\n".join(out))
 EOF
-echo "wrote $root/docs/memory.md" >&2
+repo_relative "$root/docs/memory.md"
+echo "wrote docs/memory.md" >&2

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Generates docs/performance-results.md: the gather-efficiency micro-benchmark (issue 6), i.e.
+# Generates docs/performance-results.md: the gather-efficiency micro-benchmark, i.e.
 # shadow rays per second a brute-force row sum and a column evaluation reach, against Embree's
 # raw rtcOccluded1M rate on the very same rays, and the path tracer's rays per second (closest
 # hits and shadow rays) against the same rays replayed through Embree alone, interleaved
@@ -10,6 +10,7 @@
 # Env: LIGHTFARM_BUILD (build dir, default build/), LIGHTFARM_SHARED (shared data)
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
+. "$root/scripts/report-lib.sh"
 build=${LIGHTFARM_BUILD:-$root/build}
 reps=${1:-5}
 if [ ! -f "$build/build.ninja" ]; then bash "$root/scripts/build.sh" "$build" >/dev/null; fi
@@ -35,7 +36,7 @@ out="$root/docs/performance-results.md"
   echo
   echo 'Rates are shadow rays per second for the gathers; for `PathTrace` (the `path` method'"'"'s tracer, one core) they count every ray it'
   echo 'traces, closest hits and shadow rays, against the same rays replayed through Embree alone: what is left is'
-  echo 'sampling, shading and the emitter and medium logic. The 0.7 target is the gathers'"'"' (issue 6).'
+  echo 'sampling, shading and the emitter and medium logic. The 0.7 target is the gathers'"'"'.'
   echo
   echo "| gather | median gather rate (rays/s) | median raw Embree rate | efficiency (ratio of medians) | paired ratios | target ≥ 0.7 |"
   echo "|---|---|---|---|---|---|"
@@ -53,5 +54,6 @@ out="$root/docs/performance-results.md"
   grep -E '^(gather efficiency|recorded rays|recorded path rays|BM_Gather)' "$log"
   echo '```'
 } > "$out.tmp"
+repo_relative "$out.tmp"
 mv "$out.tmp" "$out"
 echo "wrote $out" >&2

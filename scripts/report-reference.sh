@@ -5,6 +5,7 @@
 # Usage: scripts/report-reference.sh [--full]   (--full adds the 1024x1024 cornell-box render)
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
+. "$root/scripts/report-lib.sh"
 shared=${LIGHTFARM_SHARED:-$(cd "$root/.." && pwd)/shared}
 full=0
 [ "${1:-}" = "--full" ] && full=1
@@ -93,5 +94,6 @@ PY
     row cornell-box clamp$c --method brute --resolution 48x48 --spp 16 --filter box --lights 5000 --param clamp=$c
   done
 } > "$out.tmp"
+repo_relative "$out.tmp"
 mv "$out.tmp" "$out"
 echo "wrote $out"

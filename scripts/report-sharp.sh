@@ -5,6 +5,7 @@
 # Usage: scripts/report-sharp.sh [LIGHTS]   (default 2000)
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
+. "$root/scripts/report-lib.sh"
 lights=${1:-2000}
 build=${LIGHTFARM_BUILD:-$root/build}
 bash "$root/scripts/build.sh" "$build" >/dev/null
@@ -77,5 +78,6 @@ PY
     done
   done
 } > "$out.tmp"
+repo_relative "$out.tmp"
 mv "$out.tmp" "$out"
 echo "wrote $out"

@@ -24,6 +24,7 @@
 #      previous run's bench outputs).
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
+. "$root/scripts/report-lib.sh"
 shared=${LIGHTFARM_SHARED:-$(cd "$root/.." && pwd)/shared}
 build=${LIGHTFARM_BUILD:-$root/build}
 threads=${LIGHTFARM_THREADS:-0}
@@ -271,5 +272,6 @@ with open(out, "w") as f:
 PY
 rm -rf "$assets"
 mv "$assets.tmp" "$assets"
+repo_relative "$out.tmp"
 mv "$out.tmp" "$out"
 echo "wrote $out" >&2

@@ -6,7 +6,7 @@
 #
 # usage: scripts/volpath-check.sh [OUT_DIR] [SPHERE_VARIANTS] [DEPTHS]
 #   defaults: /tmp/volpath-check "glass black none" "1 2 3 7"
-# env: RES (64), LIGHTS (4000), SPP_PT (4096), BUILD (build), SHARED (/work/shared)
+# env: RES (64), LIGHTS (4000), SPP_PT (4096), BUILD (build), SHARED (../shared)
 # Costs on 2 shared cores, 64×64: lightfarm 1-1.5 min, path tracer ~1 min per case.
 set -euo pipefail
 out=${1:-/tmp/volpath-check}
@@ -16,7 +16,7 @@ res=${RES:-64}
 lights=${LIGHTS:-4000}
 spp_pt=${SPP_PT:-4096}
 build=${BUILD:-build}
-shared=${SHARED:-/work/shared}
+shared=${SHARED:-$(cd "$(dirname "$0")/../.." && pwd)/shared}
 src=$shared/scenes/volumetric-caustic/scene.pbrt
 mkdir -p "$out"
 

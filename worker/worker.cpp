@@ -10,6 +10,7 @@
 
 #include <tbb/task_group.h>
 
+#include "common/farm/farm_protocol.h"
 #include "common/farm/proto_convert.h"
 #include "common/farm/serialize.h"
 #include "common/gather/auto_method.h"
@@ -23,8 +24,6 @@ namespace lightfarm {
 namespace fs = std::filesystem;
 
 namespace {
-
-constexpr size_t kChunkBytes = 1 << 20;
 
 Bytes ReadBytes(const std::string& path) {
   std::ifstream f(path, std::ios::binary);

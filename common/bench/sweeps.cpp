@@ -13,7 +13,7 @@ namespace {
 
 // One line per method: settings separated by ';', each a comma-separated --param list, from
 // the cheapest to the most accurate. Adding a method to the bench is adding its line here; a
-// line whose method is not registered (another branch not merged yet) is ignored.
+// line whose method is not registered in this build is ignored.
 const std::vector<std::pair<std::string, std::string>>& SweepTable() {
   static const std::vector<std::pair<std::string, std::string>> table = {
       // Hašan 2007 uses rows:columns of 1:2 and 1:3 (Fig. 6).

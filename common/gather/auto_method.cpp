@@ -8,9 +8,9 @@
 // 2% target keeps brute force. The accuracy row picks, among the measured surface methods the
 // registry knows, the one with the fewest shadow rays per pixel whose measured rel_l2 is at most
 // kSafety · target (the measurements are one scene: keep a margin); without --param
-// target_error the target is kDefaultTarget (the 2% goal).
+// target_error the target is kDefaultTarget (2%).
 //
-// Measurements (kMeasured): cornell-box (/work/shared/scenes/cornell-box, diffuse, area light +
+// Measurements (kMeasured): cornell-box (the shared scenes' cornell-box, diffuse, area light +
 // indirect VPLs), 64×64, 1 spp, seed 0, each method at its default parameters against brute
 // force with the same lights, `lightfarm compare`; one run each on a loaded 2-core machine (rays
 // are deterministic, times are not, so the cost is shadow rays per pixel). rel_l2 is the worst

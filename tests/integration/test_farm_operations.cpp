@@ -153,7 +153,7 @@ TEST(FarmOperations, TlsCarriesWorkersAndClientsAndRefusesPlaintext) {
   EXPECT_TRUE(coordinator.process().running());
 }
 
-// `submit --target-error` (issue 6): the same choice as `render --target-error` from a bench's
+// `submit --target-error`: the same choice as `render --target-error` from a bench's
 // cost model, the predicted time printed before, the measured error after (the bench's cached
 // reference), and the farm's image equal to the direct render's bits.
 TEST(FarmOperations, SubmitWithTargetErrorUsesTheBenchAndReportsTheMeasuredError) {

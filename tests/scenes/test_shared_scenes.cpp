@@ -38,7 +38,7 @@ TEST(SharedScenes, CornellBoxBruteForceMatchesPathTracedReference) {
   EXPECT_EQ(out.stats["receivers"]["segments"], 0);
 }
 
-// The foundation issue's acceptance command, `lightfarm render cornell-box --method brute
+// `lightfarm render cornell-box --method brute
 // --resolution 128x128 --lights 20000` (1 spp, the scene's gaussian filter), against the
 // resized reference. Measured (seed 0, docs/reference-accuracy.md): rel_l2 = 0.479,
 // rel_l1 = 0.140; at one sample per pixel both are dominated by aliasing at geometric edges and

@@ -1,5 +1,5 @@
 // Column completion (common/matrix/column_completion.*, Huo 2016 Eq. 13) on the singular and
-// ill-conditioned U_Ω the issue lists (duplicate and zero sampled rows, |Ω| < k, columns that are
+// ill-conditioned U_Ω it can meet (duplicate and zero sampled rows, |Ω| < k, columns that are
 // exact multiples, directions nearly parallel on Ω) and on columns spanning 12 orders of
 // magnitude: finite, bounded coefficients always, and the exact column whenever Ω determines it.
 // Then `adaptive-completion` on a scene with all-zero slices and lights 12 orders apart.

@@ -100,7 +100,7 @@ TEST(SparseCompletionHardCases, ZeroSlicesAndTwelveOrdersOfMagnitude) {
                 double(approx_max / brute_max));
     // Measured (seed 4): default rate keeps 85% of the bright bay and leaks 2.9% of it into the
     // black bay (slices straddle the walls and the completion extrapolates across them);
-    // rate 0.02, rank 4 keeps 48% and leaks 9%. Bounded, but a method limit: see issue 7 report.
+    // rate 0.02, rank 4 keeps 48% and leaks 9%. Bounded, but a limit of the method.
     const bool defaults = params.empty();
     EXPECT_LE(approx_max, 2.f * brute_max);
     EXPECT_NEAR(a_bright / bright, 1.0, defaults ? 0.25 : 0.6);
