@@ -25,9 +25,9 @@
 
 #include <nlohmann/json.hpp>
 
+#include "common/farm/render_client.h"
 #include "common/farm/serialize.h"
 #include "coordinator/coordinator.h"
-#include "coordinator/render_client.h"
 #include "coordinator/services.h"
 #include "lightfarm/v1/worker.grpc.pb.h"
 

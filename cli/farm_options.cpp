@@ -1,10 +1,10 @@
 #include "cli/farm_options.h"
-#include "coordinator/cli_validators.h"
 
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 
+#include "common/farm/program.h"
 #include "common/farm/proto_convert.h"
 #include "common/image/image_io.h"
 #include "common/util/error.h"
@@ -16,7 +16,7 @@ namespace fs = std::filesystem;
 void AddServerOptions(CLI::App* cmd, ServerArgs& a) {
   cmd->add_option("--server", a.server, "Coordinator HOST:PORT")
       ->required()
-      ->check(CLI::Validator([](std::string& v) { return HostPortProblem(v, false); }, "HOST:PORT"));
+      ->check(HostPort(false));
   cmd->add_option("--token-file", a.token_file, "File holding the bearer token");
   cmd->add_flag("--tls", a.tls, "Connect with TLS");
   cmd->add_option("--tls-ca", a.tls_ca, "PEM root certificates for TLS (default: system)");

@@ -6,7 +6,7 @@
 #include <memory>
 #include <string>
 
-#include "coordinator/render_client.h"
+#include "common/farm/render_client.h"
 
 namespace lightfarm::cli {
 

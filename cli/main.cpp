@@ -1,20 +1,16 @@
 // `lightfarm`: the command-line entry point. The only place (with the gRPC service boundary)
 // where errors become a one-line message and an exit code.
 #include <spdlog/spdlog.h>
-#include <xmmintrin.h>
-#include <pmmintrin.h>
 
 #include <CLI/CLI.hpp>
 #include <iostream>
 
 #include "cli/commands.h"
+#include "common/farm/program.h"
 #include "common/util/error.h"
 
 int main(int argc, char** argv) {
-  // Flush denormals to zero before the first oneTBB task so every worker thread inherits it
-  // (DESIGN.md pitfalls): denormal arithmetic in BSDF tails is slow and meaningless here.
-  _MM_SET_FLUSH_ZERO_MODE(_MM_FLUSH_ZERO_ON);
-  _MM_SET_DENORMALS_ZERO_MODE(_MM_DENORMALS_ZERO_ON);
+  lightfarm::SetFloatingPointMode();
   spdlog::set_pattern("%^[%l]%$ %v");
   spdlog::set_level(spdlog::level::warn);
 

@@ -14,7 +14,7 @@
 #include "cli/target_error.h"
 #include "common/image/image_io.h"
 #include "common/util/error.h"
-#include "coordinator/embedded_farm.h"
+#include "cli/embedded_farm.h"
 
 namespace lightfarm::cli {
 

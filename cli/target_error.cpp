@@ -1,11 +1,11 @@
 #include "cli/target_error.h"
-#include "coordinator/cli_validators.h"
 
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 
 #include "common/bench/reference.h"
+#include "common/farm/program.h"
 #include "common/gather/auto_method.h"
 #include "common/image/image_io.h"
 #include "common/image/metrics.h"

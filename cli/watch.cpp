@@ -8,9 +8,9 @@
 #include <iostream>
 
 #include "cli/commands.h"
-#include "coordinator/cli_validators.h"
 #include "cli/farm_options.h"
 #include "cli/progress.h"
+#include "common/farm/program.h"
 #include "common/farm/proto_convert.h"
 
 namespace lightfarm::cli {

@@ -9,7 +9,7 @@
 #include <string>
 
 #include "common/farm/serialize.h"
-#include "coordinator/content_hash.h"
+#include "common/farm/content_hash.h"
 
 namespace lightfarm {
 

@@ -1,20 +1,16 @@
 // `lightfarm-coordinator --listen HOST:PORT --state-dir DIR [--token-file F] [--tls-cert F
 // --tls-key F] [--metrics-listen HOST:PORT] [limits]`: the farm's job service. SIGTERM/SIGINT
 // drain it (health NOT_SERVING, in-flight RPCs finish); unfinished jobs resume at the next start.
-#include <pmmintrin.h>
-#include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
-#include <xmmintrin.h>
 
 #include <CLI/CLI.hpp>
-#include <grpc/support/log.h>
 #include <csignal>
 #include <iostream>
 #include <thread>
 
 #include "common/image/image_io.h"
-#include "coordinator/render_client.h"
-#include "coordinator/cli_validators.h"
+#include "common/farm/program.h"
+#include "common/farm/rpc.h"
 #include "coordinator/services.h"
 
 namespace {
@@ -22,27 +18,18 @@ namespace {
 volatile std::sig_atomic_t g_stop = 0;
 void OnSignal(int) { g_stop = 1; }
 
-// gRPC's own log lines go to our logger at debug level: a failed bind is reported once, as the
-// coordinator's one-line error, not as gRPC's multi-line dump beside it.
-void GrpcLogToDebug(gpr_log_func_args* args) { spdlog::debug("grpc: {}", args->message); }
-
 }  // namespace
 
 int main(int argc, char** argv) {
-  _MM_SET_FLUSH_ZERO_MODE(_MM_FLUSH_ZERO_ON);
-  _MM_SET_DENORMALS_ZERO_MODE(_MM_DENORMALS_ZERO_ON);
-  spdlog::set_default_logger(spdlog::stderr_color_mt("lightfarm"));  // stdout is for data
-  spdlog::set_pattern("[%H:%M:%S.%e] [coordinator] [%l] %v");
+  lightfarm::SetFloatingPointMode();
+  lightfarm::LogToStderr("coordinator");
 
   CLI::App app{"lightfarm-coordinator: the lightfarm render-farm service"};
   lightfarm::CoordinatorOptions opt;
   lightfarm::ServerConfig server;
   std::string token_file, log_level = "info";
   double max_blob_mb = 1024, drain_s = 10;
-  const CLI::Validator listen_address(
-      [](std::string& v) { return lightfarm::HostPortProblem(v, true); }, "HOST:PORT");
-  const CLI::Validator log_levels =
-      CLI::IsMember({"trace", "debug", "info", "warn", "error", "critical", "off"});
+  const CLI::Validator listen_address = lightfarm::HostPort(true);
   app.add_option("--listen", server.listen, "gRPC HOST:PORT (port 0: pick one, printed)")
       ->required()
       ->check(listen_address);
@@ -67,18 +54,9 @@ int main(int argc, char** argv) {
   app.add_option("--rpc-threads", server.rpc_threads, "Threads serving RPCs")->check(CLI::Range(1, 256));
   app.add_option("--drain-seconds", drain_s, "Grace period for in-flight RPCs on SIGTERM")
       ->check(lightfarm::FiniteRange(0.0, 86400.0));
-  app.add_option("--log-level", log_level, "trace|debug|info|warn|error")->check(log_levels);
-  // One line on stderr for a bad option (CLI11_PARSE adds a second, "Run with --help ...").
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::Success& e) {
-    return app.exit(e);
-  } catch (const CLI::ParseError& e) {
-    std::cerr << "lightfarm-coordinator: " << e.what() << "\n";
-    return 2;
-  }
+  app.add_option("--log-level", log_level, "trace|debug|info|warn|error")->check(lightfarm::LogLevel());
+  if (auto exit_code = lightfarm::ParseCommandLine(app, argc, argv, "lightfarm-coordinator")) return *exit_code;
   spdlog::set_level(spdlog::level::from_str(log_level));
-  gpr_set_log_function(GrpcLogToDebug);
   try {
     opt.max_blob_bytes = uint64_t(max_blob_mb * 1024.0 * 1024.0);
     server.token = lightfarm::ReadTokenFile(token_file);

@@ -15,8 +15,6 @@ namespace lightfarm {
 
 namespace {
 
-constexpr int kMaxMessageBytes = 64 << 20;
-
 grpc::Status ToStatus(const FarmError& e) {
   using C = FarmError::Code;
   switch (e.code()) {
@@ -54,21 +52,6 @@ bool Authorized(const std::string& token, const grpc::CallbackServerContext* ctx
 }
 
 }  // namespace
-
-bool TokenMatches(const std::string& expected, const std::string& header_value) {
-  const std::string want = "Bearer " + expected;
-  unsigned diff = want.size() != header_value.size();
-  for (size_t i = 0; i < want.size(); ++i)
-    diff |= unsigned(uint8_t(want[i]) ^ uint8_t(i < header_value.size() ? header_value[i] : 0));
-  return diff == 0;
-}
-
-grpc::ChannelArguments FarmChannelArguments() {
-  grpc::ChannelArguments args;
-  args.SetMaxReceiveMessageSize(kMaxMessageBytes);
-  args.SetMaxSendMessageSize(kMaxMessageBytes);
-  return args;
-}
 
 // --- streaming helpers ----------------------------------------------------------------------------
 

@@ -10,6 +10,7 @@
 #include <string>
 #include <thread>
 
+#include "common/farm/rpc.h"
 #include "coordinator/coordinator.h"
 #include "lightfarm/v1/render.grpc.pb.h"
 #include "lightfarm/v1/worker.grpc.pb.h"
@@ -58,11 +59,5 @@ class FarmServer {
   int port_ = 0;
   bool shut_down_ = false;
 };
-
-// Channel arguments both sides use: messages up to 64 MiB (task specs; blobs are chunked).
-grpc::ChannelArguments FarmChannelArguments();
-
-// "Bearer <token>" metadata check, constant time in the token's length.
-bool TokenMatches(const std::string& expected, const std::string& header_value);
 
 }  // namespace lightfarm

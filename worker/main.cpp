@@ -1,18 +1,15 @@
 // `lightfarm-worker --coordinator HOST:PORT [--threads N] [--cache-dir DIR] [--token-file F]`:
 // pulls tasks until SIGTERM/SIGINT (first signal: finish the current task; second: hand it back).
-#include <pmmintrin.h>
-#include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 #include <tbb/global_control.h>
-#include <xmmintrin.h>
 
 #include <CLI/CLI.hpp>
 #include <csignal>
 #include <iostream>
 #include <thread>
 
-#include "coordinator/render_client.h"
-#include "coordinator/cli_validators.h"
+#include "common/farm/program.h"
+#include "common/farm/rpc.h"
 #include "worker/worker.h"
 
 namespace {
@@ -23,10 +20,8 @@ void OnSignal(int) { g_signals = g_signals + 1; }
 }  // namespace
 
 int main(int argc, char** argv) {
-  _MM_SET_FLUSH_ZERO_MODE(_MM_FLUSH_ZERO_ON);
-  _MM_SET_DENORMALS_ZERO_MODE(_MM_DENORMALS_ZERO_ON);
-  spdlog::set_default_logger(spdlog::stderr_color_mt("lightfarm"));  // stdout is for data
-  spdlog::set_pattern("[%H:%M:%S.%e] [worker] [%l] %v");
+  lightfarm::SetFloatingPointMode();
+  lightfarm::LogToStderr("worker");
 
   CLI::App app{"lightfarm-worker: runs render tasks leased from a lightfarm coordinator"};
   lightfarm::ChannelOptions channel;
@@ -36,8 +31,7 @@ int main(int argc, char** argv) {
   double cache_gb = 4;
   app.add_option("--coordinator", channel.address, "Coordinator HOST:PORT")
       ->required()
-      ->check(CLI::Validator([](std::string& v) { return lightfarm::HostPortProblem(v, false); },
-                             "HOST:PORT"));
+      ->check(lightfarm::HostPort(false));
   app.add_option("--threads", threads, "Threads for tasks (0 = all cores)")->check(CLI::Range(0, 4096));
   app.add_option("--cache-dir", options.cache_dir, "Blob cache directory (default: temporary)");
   app.add_option("--cache-gb", cache_gb, "Blob cache bound in GiB")->check(lightfarm::FiniteRange(0.001, 1e6));
@@ -48,18 +42,10 @@ int main(int argc, char** argv) {
   app.add_option("--poll-interval", options.idle_poll_s, "Seconds between polls while idle")
       ->check(lightfarm::FiniteRange(0.001, 60.0));
   app.add_option("--log-level", log_level, "trace|debug|info|warn|error")
-      ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error", "critical", "off"}));
+      ->check(lightfarm::LogLevel());
   // Hidden: lets tests pretend to be a worker of another protocol version.
   app.add_option("--protocol-version", options.protocol_version)->group("");
-  // One line on stderr for a bad option (CLI11_PARSE adds a second, "Run with --help ...").
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::Success& e) {
-    return app.exit(e);
-  } catch (const CLI::ParseError& e) {
-    std::cerr << "lightfarm-worker: " << e.what() << "\n";
-    return 2;
-  }
+  if (auto exit_code = lightfarm::ParseCommandLine(app, argc, argv, "lightfarm-worker")) return *exit_code;
   spdlog::set_level(spdlog::level::from_str(log_level));
 
   try {

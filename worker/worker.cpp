@@ -10,14 +10,14 @@
 
 #include <tbb/task_group.h>
 
+#include "common/farm/content_hash.h"
 #include "common/farm/farm_protocol.h"
 #include "common/farm/proto_convert.h"
+#include "common/farm/rpc.h"
 #include "common/farm/serialize.h"
 #include "common/gather/auto_method.h"
 #include "common/scene/effects.h"
 #include "common/scene/scene_description.h"
-#include "coordinator/content_hash.h"
-#include "coordinator/render_client.h"
 
 namespace lightfarm {
 

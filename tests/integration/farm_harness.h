@@ -20,8 +20,8 @@
 
 #include <future>
 
+#include "common/farm/render_client.h"
 #include "common/image/image_io.h"
-#include "coordinator/render_client.h"
 #include "tests/common/test_util.h"
 
 namespace lightfarm::testing {

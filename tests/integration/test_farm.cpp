@@ -10,7 +10,7 @@
 #include <thread>
 
 #include "common/farm/render_job.h"
-#include "coordinator/embedded_farm.h"
+#include "cli/embedded_farm.h"
 #include "tests/common/caustic_scene.h"
 #include "tests/common/glossy_scene.h"
 #include "tests/integration/farm_harness.h"

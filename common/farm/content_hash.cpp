@@ -1,4 +1,4 @@
-#include "coordinator/content_hash.h"
+#include "common/farm/content_hash.h"
 
 #include <openssl/evp.h>
 

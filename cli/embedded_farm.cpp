@@ -1,4 +1,4 @@
-#include "coordinator/embedded_farm.h"
+#include "cli/embedded_farm.h"
 
 #include <spdlog/spdlog.h>
 #include <unistd.h>
@@ -8,9 +8,9 @@
 #include <random>
 #include <thread>
 
+#include "common/farm/render_client.h"
 #include "common/image/image_io.h"
 #include "common/util/error.h"
-#include "coordinator/render_client.h"
 #include "coordinator/services.h"
 #include "worker/worker.h"
 

@@ -6,43 +6,14 @@
 
 #include <functional>
 #include <memory>
-#include <stdexcept>
 #include <string>
 #include <vector>
 
 #include "common/farm/render_job.h"
+#include "common/farm/rpc.h"
 #include "lightfarm/v1/render.grpc.pb.h"
 
 namespace lightfarm {
-
-// A failed RPC; what() is "<CODE>: <message>", e.g. "UNAUTHENTICATED: missing or wrong ...".
-class RpcError : public std::runtime_error {
- public:
-  RpcError(const grpc::Status& status);
-  grpc::StatusCode code() const { return code_; }
-
- private:
-  grpc::StatusCode code_;
-};
-
-const char* StatusCodeName(grpc::StatusCode code);
-void ThrowIfError(const grpc::Status& status);
-
-struct ChannelOptions {
-  std::string address;  // host:port
-  bool tls = false;
-  std::string tls_ca;   // PEM file with the root certificates; empty: the system's; given: TLS
-};
-std::shared_ptr<grpc::Channel> MakeChannel(const ChannelOptions& options);
-
-// What is wrong with a HOST:PORT option value ("" when nothing): an empty host, a missing or
-// non-numeric port, a port outside 1..65535 (0 too when `listen`: pick a free one). gRPC target
-// URIs (unix:PATH, dns:, ipv4:, ipv6:) are passed through unchecked. Without this check a typo
-// made the worker and the CLI retry an unreachable address until their timeout.
-std::string HostPortProblem(const std::string& address, bool listen);
-
-// Reads a token file (surrounding whitespace removed); "" for an empty path.
-std::string ReadTokenFile(const std::string& path);
 
 class RenderClient {
  public:
