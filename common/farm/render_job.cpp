@@ -187,6 +187,7 @@ Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, Ph
   ropt.seed = settings.seed;
   ropt.max_depth = scene.hints().max_depth;
   ropt.segments_per_ray = media_rows ? segments_per_ray : -1;
+  ropt.sharp_samples = plan.matrix_options.sharp_samples;
   plan.receivers = GenerateReceivers(scene, filter_sampler, ropt);
   timer.End("receivers");
   // Segment slices before anything refers to the segments: refinement may split some of them.

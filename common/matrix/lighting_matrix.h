@@ -45,6 +45,8 @@ struct MatrixOptions {
   // by the columns, smoother ones are sampled like delta lobes; -1 for the default tied to the
   // light count (SharpAlpha).
   float sharp_roughness = -1;
+  // Emitter samples at each sharp-lobe vertex of a camera path (ReceiverOptions::sharp_samples).
+  int sharp_samples = 8;
 };
 // The sharp-lobe threshold a render uses (docs/rendering.md, "Sharp lobes"): the option when
 // given, else √(20/N) for N virtual lights (a lobe that sees fewer than ~40 of them makes

@@ -63,12 +63,14 @@ void AddEyeSegments(const Medium& med, int medium, const Ray& ray, float tmax, R
   }
 }
 
-// Next-event estimation for the sharp lobe of the vertex at `hit` (docs/rendering.md, "Sharp
-// lobes"), the sample combined by MIS with the lobe's own: the light arriving through the lobe,
-// given that the camera path chose the lobe (with probability p_lobe).
-RGB SharpLobeDirectLight(const Scene& scene, const EmitterSampler& lights, const SurfaceHit& hit,
-                         const Material& m, const Frame& frame, Vec3 wo_local, float p_lobe, int medium,
-                         Rng& rng) {
+// One emitter sample of next-event estimation for the sharp lobe of the vertex at `hit`
+// (docs/rendering.md, "Sharp lobes"), given that the camera path chose the lobe (probability
+// p_lobe), weighted by the power heuristic against the lobe's own sample with `count` emitter
+// samples to one lobe sample (Veach 1997, Sec. 9.2.4: weights on n_i·p_i): the caller averages
+// the `count` samples.
+RGB SharpLobeEmitterSample(const Scene& scene, const EmitterSampler& lights, const SurfaceHit& hit,
+                           const Material& m, const Frame& frame, Vec3 wo_local, float p_lobe, int medium,
+                           int count, Rng& rng) {
   const float u_pick = rng.Uniform();
   const Vec2 u{rng.Uniform(), rng.Uniform()};
   const std::optional<LightSample> ls = lights.Sample(hit.p, u_pick, u);
@@ -98,22 +100,35 @@ RGB SharpLobeDirectLight(const Scene& scene, const EmitterSampler& lights, const
     tr = ls->infinite_distance ? scene.TransmittanceAlong(o, ls->wi, kInfinity, start, rng)
                                : scene.Transmittance(o, o + dir * tfar, start, rng);
   }
-  const float w = ls->delta ? 1.f : PowerHeuristic(ls->pdf, PdfSharpLobe(m, wo_local, wi_local) / p_lobe);
+  const float w = ls->delta ? 1.f : PowerHeuristic(float(count) * ls->pdf, PdfSharpLobe(m, wo_local, wi_local) / p_lobe);
   return f * ls->L * tr * (w / (ls->pdf * p_lobe));
+}
+
+// Next-event estimation at a sharp vertex: the average of `count` emitter samples. A sharp lobe
+// reflecting a small light (veach-mis's smallest sphere on its smoothest plate) is found by
+// emitter samples, not by the lobe's one sample; each costs one shadow ray, against the
+// thousands the receiver's gather casts, so several per vertex are nearly free.
+RGB SharpLobeDirectLight(const Scene& scene, const EmitterSampler& lights, const SurfaceHit& hit,
+                         const Material& m, const Frame& frame, Vec3 wo_local, float p_lobe, int medium,
+                         int count, Rng& rng) {
+  RGB sum(0.f);
+  for (int i = 0; i < count; ++i)
+    sum += SharpLobeEmitterSample(scene, lights, hit, m, frame, wo_local, p_lobe, medium, count, rng);
+  return sum / float(count);
 }
 
 // Follows a camera ray through specular (delta) interactions to its first non-specular vertex,
 // collecting the emission seen along the way. `lights` (set when the scene has sharp lobes):
 // at a vertex that follows a sharp lobe, emission is estimated by MIS of the lobe's sample
 // and an emitter sample.
-PathEnd TraceCameraPath(const Scene& scene, const EmitterSampler* lights, Ray ray, int max_depth,
-                        int segments_per_ray, Rng& rng) {
+PathEnd TraceCameraPath(const Scene& scene, const EmitterSampler* lights, int sharp_samples, Ray ray,
+                        int max_depth, int segments_per_ray, Rng& rng) {
   PathEnd end;
   RGB beta(1.f);
   int depth = 0, passthrough = 0;
   int medium = scene.camera_medium();
   // After a sharp-lobe sample: its density (the lobe's, given the lobe) and where it left from,
-  // for the MIS weight of an emitter the ray finds.
+  // for the MIS weight of an emitter the ray finds (against sharp_samples emitter samples).
   bool after_sharp = false;
   float sharp_pdf = 0;
   Vec3 sharp_p;
@@ -136,7 +151,7 @@ PathEnd TraceCameraPath(const Scene& scene, const EmitterSampler* lights, Ray ra
       } else {
         for (uint32_t i = 0; i < scene.infinite_emitters().size(); ++i)
           end.emitted += beta * scene.infinite_emitters()[i].Le(ray.d) *
-                         PowerHeuristic(sharp_pdf, lights->PdfInfinite(i, ray.d));
+                         PowerHeuristic(sharp_pdf, float(sharp_samples) * lights->PdfInfinite(i, ray.d));
       }
       end.escaped = true;
       return end;
@@ -146,7 +161,7 @@ PathEnd TraceCameraPath(const Scene& scene, const EmitterSampler* lights, Ray ra
       const RGB Le = scene.EmittedRadiance(hit, wo);
       if (!Le.IsBlack()) {
         const int e = scene.shapes()[hit.shape].area_emitter;
-        const float w = after_sharp && e >= 0 ? PowerHeuristic(sharp_pdf, lights->PdfArea(uint32_t(e), sharp_p, hit)) : 1.f;
+        const float w = after_sharp && e >= 0 ? PowerHeuristic(sharp_pdf, float(sharp_samples) * lights->PdfArea(uint32_t(e), sharp_p, hit)) : 1.f;
         end.emitted += beta * Le * w;
       }
     }
@@ -192,7 +207,8 @@ PathEnd TraceCameraPath(const Scene& scene, const EmitterSampler* lights, Ray ra
     if (lights && HasSharpLobe(m)) {
       // A sharp lobe is not a delta: emitters it reflects get an emitter sample too (MIS).
       const float p_lobe = std::max(p_specular, 1e-6f);
-      end.emitted += beta * SharpLobeDirectLight(scene, *lights, hit, m, frame, wo_local, p_lobe, medium, rng);
+      end.emitted += beta * SharpLobeDirectLight(scene, *lights, hit, m, frame, wo_local, p_lobe, medium,
+                                                  sharp_samples, rng);
       after_sharp = true;
       sharp_pdf = bs->pdf / p_lobe;
       sharp_p = hit.p;
@@ -260,7 +276,8 @@ ReceiverSet GenerateReceivers(const Scene& scene, const FilterSampler& filter,
           ++st.nonfinite_rays;
           continue;
         }
-        PathEnd end = TraceCameraPath(scene, sharp_lights.get(), ray, opt.max_depth, opt.segments_per_ray, rng);
+        PathEnd end = TraceCameraPath(scene, sharp_lights.get(), opt.sharp_samples, ray, opt.max_depth,
+                                      opt.segments_per_ray, rng);
         for (EyeSegment& seg : end.segments) seg.sample = uint32_t(index);
         segments[index] = std::move(end.segments);
         cs.emitted = end.emitted;

@@ -66,6 +66,9 @@ struct ReceiverOptions {
   // Eye rays through media become h + 1 segments split at h points placed by delta tracking
   // (Huo 2016: h = 16). -1: no segments (the camera ray is only attenuated).
   int segments_per_ray = -1;
+  // Emitter samples per sharp-lobe vertex (docs/rendering.md, "Sharp lobes"), MIS-combined with
+  // the lobe's one sample.
+  int sharp_samples = 8;
 };
 
 // The scene's pixel filter (PixelFilter directive, or the override the scene was built with).

@@ -83,6 +83,25 @@ TEST(SharpLobes, EveryMethodMatchesThePathTracerFromMirrorToRough) {
   }
 }
 
+// Next-event estimation at a sharp vertex averages sharp_samples emitter samples, MIS-weighted
+// against the lobe's one sample (weights on n·p): whatever their number, the reflection and the
+// plane keep the path tracer's mean. (At roughness 0.08 most of the reflection comes from the
+// emitter samples; leaving the count out of the lobe sample's weight shifts it by only ~4%,
+// below this test's noise, but a sum instead of an average, or a lost strategy, fails it.)
+TEST(SharpLobes, EmitterSamplesAtSharpVerticesKeepTheMean) {
+  TempDir dir;
+  const std::string path = dir.Write("glossy.pbrt", GlossyPlane(0.08f));
+  const Image truth = Render(path, "path", 1024).image;
+  for (const char* samples : {"sharp_samples=1", "sharp_samples=8", "sharp_samples=32"}) {
+    const RenderOutput out = Render(path, "brute", 16, {samples});
+    EXPECT_EQ(out.stats["sharp"]["materials"], 1);
+    for (PixelRect r : {testing::kGlossyBlob, testing::kGlossyPlane}) {
+      const double t = RegionMean(truth, r), m = RegionMean(out.image, r);
+      EXPECT_NEAR(m, t, 0.06 * t) << samples << ", region at (" << r.x0 << ", " << r.y0 << ")";
+    }
+  }
+}
+
 TEST(SharpLobes, WithoutTheSplitTheBackdropHasSpecks) {
   TempDir dir;
   const std::string path = dir.Write("glossy.pbrt", GlossyPlane(0.01f));
