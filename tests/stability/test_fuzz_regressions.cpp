@@ -29,25 +29,49 @@ std::vector<std::string> Inputs(const std::string& target) {
   return out;
 }
 
+// The contract every scene input meets: it parses (into shapes whose materials exist), or it fails with a SceneError that names the
+// file and a line ("fuzz.pbrt:LINE: what is wrong"), never another exception.
 TEST(FuzzRegressions, ParseScene) {
   testing::TempDir empty;
-  for (const std::string& path : Inputs("parse_scene")) {
+  const std::vector<std::string> inputs = Inputs("parse_scene");
+  EXPECT_FALSE(inputs.empty());
+  for (const std::string& path : inputs) {
     try {
-      ParseSceneString(testing::Slurp(path), "fuzz.pbrt", empty.Path(""));
-    } catch (const SceneError&) {
+      const SceneDescription scene = ParseSceneString(testing::Slurp(path), "fuzz.pbrt", empty.Path(""));
+      for (const ShapeDesc& shape : scene.shapes)
+        EXPECT_TRUE(shape.material >= -1 && shape.material < int(scene.materials.size())) << path;
+    } catch (const SceneError& e) {
+      EXPECT_EQ(std::string(e.what()).rfind("fuzz.pbrt:", 0), 0u) << path << ": " << e.what();
     }
   }
 }
 
+// Every PLY input is read into a valid triangle mesh (indices in range, a multiple of three) or
+// refused with a SceneError naming the file. The kept inputs are hand-made malformed files
+// (a truncated binary body, a missing end_header, an index out of range, a vertex count that
+// overflows) and a quad that must become two triangles.
 TEST(FuzzRegressions, ReadPly) {
-  for (const std::string& path : Inputs("read_ply")) {
+  const std::vector<std::string> inputs = Inputs("read_ply");
+  EXPECT_GE(inputs.size(), 5u);
+  int read = 0, refused = 0;
+  for (const std::string& path : inputs) {
+    const std::string name = fs::path(path).filename().string();
     try {
       const PlyMesh mesh = ReadPly(path);
+      ++read;
       EXPECT_EQ(mesh.indices.size() % 3, 0u) << path;
       for (int i : mesh.indices) EXPECT_LT(size_t(i), mesh.positions.size()) << path;
-    } catch (const SceneError&) {
+      if (name == "quad_is_two_triangles.ply") {
+        EXPECT_EQ(mesh.indices.size(), 6u);
+      }
+    } catch (const SceneError& e) {
+      ++refused;
+      EXPECT_NE(std::string(e.what()).find(name), std::string::npos) << e.what();
+      EXPECT_NE(name, "quad_is_two_triangles.ply") << e.what();
     }
   }
+  EXPECT_GE(read, 1);
+  EXPECT_GE(refused, 4);
 }
 
 template <typename Decode, typename Encode>
