@@ -20,7 +20,7 @@ if [ ! -f "$build/build.ninja" ]; then
 fi
 start=$(date +%s)
 cmake --build "$build" --parallel "$(nproc)" \
-  --target lightfarm lightfarm_unit_tests lightfarm_stability_tests
+  --target lightfarm lightfarm_unit_tests lightfarm_unit_shared_tests lightfarm_stability_tests
 echo "sanitize: build took $(( $(date +%s) - start )) s"
 
 export LIGHTFARM_SHARED=${LIGHTFARM_SHARED:-$(cd "$root/.." && pwd)/shared}
@@ -29,5 +29,5 @@ export UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1
 export LSAN_OPTIONS=suppressions=$root/scripts/lsan.supp
 start=$(date +%s)
 cd "$build"
-ctest --output-on-failure --timeout 1800 -j "$(nproc)" -L '^(unit|stability)$' "$@"
+ctest --output-on-failure --timeout 1800 -j "$(nproc)" -L '^(unit|unit-shared|stability)$' "$@"
 echo "sanitize: tests took $(( $(date +%s) - start )) s"
