@@ -51,6 +51,21 @@ bool Authorized(const std::string& token, const grpc::CallbackServerContext* ctx
   return it != md.end() && TokenMatches(token, std::string(it->second.data(), it->second.size()));
 }
 
+
+// A unary call: refused at once without the bearer token, else run on the pool with whatever it
+// throws turned into its status.
+template <typename Fn>
+grpc::ServerUnaryReactor* GuardedUnary(grpc::CallbackServerContext* ctx, const std::string& token,
+                                       ThreadPool* pool, Fn fn) {
+  grpc::ServerUnaryReactor* reactor = ctx->DefaultReactor();
+  if (!Authorized(token, ctx)) {
+    reactor->Finish(kUnauthenticated);
+    return reactor;
+  }
+  pool->Submit([reactor, fn = std::move(fn)]() mutable { reactor->Finish(Guard(fn)); });
+  return reactor;
+}
+
 }  // namespace
 
 // --- streaming helpers ----------------------------------------------------------------------------
@@ -239,25 +254,30 @@ WatchHub::~WatchHub() {
   for (WatchReactor* w : retired_) delete w;
 }
 
-// Receives a stream of chunks into memory or a blob upload; `on_chunk` consumes each message and
-// `on_end` produces the final status. Both run on the pool, one at a time.
+// A client stream of chunks whose first message declares the payload's total size (blob
+// uploads, task results). The reader enforces what every such stream must: a first message, a
+// declared size within the limit, never more data than declared, and nothing missing at the
+// end; the handlers (run on the pool, one at a time) see only data that passed, and whatever
+// they throw becomes the call's status (Guard).
 template <typename Msg>
-class ChunkReadReactor : public grpc::ServerReadReactor<Msg> {
+class SizedStreamReader : public grpc::ServerReadReactor<Msg> {
  public:
-  using OnChunk = std::function<grpc::Status(Msg&)>;
-  using OnEnd = std::function<grpc::Status()>;
-  ChunkReadReactor(ThreadPool* pool, OnChunk on_chunk, OnEnd on_end)
-      : pool_(pool), on_chunk_(std::move(on_chunk)), on_end_(std::move(on_end)) {
+  struct Handlers {
+    std::string what;          // names the payload in errors: "blob", "result"
+    uint64_t limit = 0;        // largest declared size accepted
+    std::string limit_option;  // the option that sets it, for the error message
+    // The first message's header: checks it (throwing FarmError) and returns the declared size.
+    std::function<uint64_t(const Msg&)> open;
+    std::function<void(const std::string&)> append;  // every message's data, in order
+    std::function<void()> close;                     // all of it arrived: finish, fill the response
+  };
+  SizedStreamReader(ThreadPool* pool, Handlers handlers) : pool_(pool), h_(std::move(handlers)) {
     this->StartRead(&msg_);
   }
   void OnReadDone(bool ok) override {
     pool_->Submit([this, ok] {
-      if (!ok) {
-        this->Finish(on_end_());
-        return;
-      }
-      grpc::Status st = on_chunk_(msg_);
-      if (!st.ok()) {
+      const grpc::Status st = Guard([&] { ok ? Chunk() : End(); });
+      if (!ok || !st.ok()) {
         this->Finish(st);
         return;
       }
@@ -267,10 +287,34 @@ class ChunkReadReactor : public grpc::ServerReadReactor<Msg> {
   void OnDone() override { delete this; }
 
  private:
+  void Chunk() {
+    if (!opened_) {
+      size_ = h_.open(msg_);
+      opened_ = true;
+      if (size_ > h_.limit)
+        throw FarmError(FarmError::Code::kResourceExhausted,
+                        h_.what + " of " + std::to_string(size_) + " bytes exceeds the limit of " +
+                            std::to_string(h_.limit) + " bytes (" + h_.limit_option + ")");
+    }
+    received_ += msg_.data().size();
+    if (received_ > size_)
+      throw FarmError(FarmError::Code::kInvalidArgument,
+                      h_.what + ": more data than the declared " + std::to_string(size_) + " bytes");
+    h_.append(msg_.data());
+  }
+  void End() {
+    if (!opened_) throw FarmError(FarmError::Code::kInvalidArgument, "empty " + h_.what + " stream");
+    if (received_ != size_)
+      throw FarmError(FarmError::Code::kInvalidArgument, h_.what + " stream ended after " + std::to_string(received_) +
+                                                             " of its " + std::to_string(size_) + " bytes");
+    h_.close();
+  }
+
   ThreadPool* pool_;
-  OnChunk on_chunk_;
-  OnEnd on_end_;
+  Handlers h_;
   Msg msg_;
+  bool opened_ = false;
+  uint64_t size_ = 0, received_ = 0;
 };
 
 template <typename Msg>
@@ -295,13 +339,7 @@ class FarmServer::RenderServiceImpl final : public v1::RenderService::CallbackSe
 
   template <typename Fn>
   grpc::ServerUnaryReactor* Unary(grpc::CallbackServerContext* ctx, Fn fn) {
-    grpc::ServerUnaryReactor* reactor = ctx->DefaultReactor();
-    if (!Authorized(token_, ctx)) {
-      reactor->Finish(kUnauthenticated);
-      return reactor;
-    }
-    pool_->Submit([reactor, fn = std::move(fn)]() mutable { reactor->Finish(Guard(fn)); });
-    return reactor;
+    return GuardedUnary(ctx, token_, pool_, std::move(fn));
   }
 
   grpc::ServerUnaryReactor* FindMissingBlobs(grpc::CallbackServerContext* ctx,
@@ -316,52 +354,44 @@ class FarmServer::RenderServiceImpl final : public v1::RenderService::CallbackSe
   grpc::ServerReadReactor<v1::BlobChunk>* UploadBlob(grpc::CallbackServerContext* ctx,
                                                      v1::UploadBlobResponse* resp) override {
     if (!Authorized(token_, ctx)) return new RejectReadReactor<v1::BlobChunk>(kUnauthenticated);
+    // A blob the store already has is read to the end and dropped.
     struct State {
       std::unique_ptr<BlobStore::Upload> upload;
-      bool first = true, skip = false;
       std::string sha;
-      uint64_t size = 0, received = 0;
+      uint64_t size = 0;
+      bool skip = false;
     };
     auto state = std::make_shared<State>();
     BlobStore& blobs = c_.blobs();
-    auto on_chunk = [state, &blobs](v1::BlobChunk& chunk) -> grpc::Status {
-      return Guard([&] {
-        if (state->first) {
-          state->first = false;
-          state->sha = chunk.sha256();
-          state->size = chunk.total_size();
-          if (!IsSha256Hex(state->sha))
-            throw FarmError(FarmError::Code::kInvalidArgument, "the first chunk must name the blob's SHA-256 (lower-case hex)");
-          if (state->size > blobs.max_blob_bytes())
-            throw FarmError(FarmError::Code::kResourceExhausted,
-                            "blob of " + std::to_string(state->size) + " bytes exceeds the limit of " +
-                                std::to_string(blobs.max_blob_bytes()) + " bytes (--max-blob-bytes)");
-          state->skip = blobs.Has(state->sha);
-          if (!state->skip) state->upload = std::make_unique<BlobStore::Upload>(&blobs, state->sha, state->size);
-        }
-        state->received += chunk.data().size();
-        if (state->received > state->size)
-          throw FarmError(state->size >= blobs.max_blob_bytes() ? FarmError::Code::kResourceExhausted
-                                                                : FarmError::Code::kInvalidArgument,
-                          "blob " + state->sha + ": more data than the declared " + std::to_string(state->size) + " bytes");
-        if (state->upload) state->upload->Append(chunk.data());
-      });
+    SizedStreamReader<v1::BlobChunk>::Handlers h;
+    h.what = "blob";
+    h.limit = blobs.max_blob_bytes();
+    h.limit_option = "--max-blob-mb";
+    h.open = [state, &blobs](const v1::BlobChunk& chunk) {
+      state->sha = chunk.sha256();
+      state->size = chunk.total_size();
+      if (!IsSha256Hex(state->sha))
+        throw FarmError(FarmError::Code::kInvalidArgument, "the first chunk must name the blob's SHA-256 (lower-case hex)");
+      state->skip = blobs.Has(state->sha);
+      return state->size;
     };
-    auto on_end = [state, resp]() -> grpc::Status {
-      return Guard([&] {
-        if (state->first) throw FarmError(FarmError::Code::kInvalidArgument, "empty upload");
-        if (state->upload) {
-          try {
-            state->upload->Commit();
-          } catch (const std::invalid_argument& e) {
-            throw FarmError(FarmError::Code::kInvalidArgument, e.what());
-          }
-        }
-        resp->set_sha256(state->sha);
-        resp->set_size(state->size);
-      });
+    h.append = [state, &blobs](const std::string& data) {
+      if (state->skip) return;
+      if (!state->upload) state->upload = std::make_unique<BlobStore::Upload>(&blobs, state->sha, state->size);
+      state->upload->Append(data);
     };
-    return new ChunkReadReactor<v1::BlobChunk>(pool_, on_chunk, on_end);
+    h.close = [state, resp] {
+      if (state->upload) {
+        try {
+          state->upload->Commit();
+        } catch (const std::invalid_argument& e) {
+          throw FarmError(FarmError::Code::kInvalidArgument, e.what());
+        }
+      }
+      resp->set_sha256(state->sha);
+      resp->set_size(state->size);
+    };
+    return new SizedStreamReader<v1::BlobChunk>(pool_, std::move(h));
   }
 
   grpc::ServerUnaryReactor* SubmitJob(grpc::CallbackServerContext* ctx, const v1::SubmitJobRequest* req,
@@ -423,13 +453,7 @@ class FarmServer::WorkerServiceImpl final : public v1::WorkerService::CallbackSe
 
   template <typename Fn>
   grpc::ServerUnaryReactor* Unary(grpc::CallbackServerContext* ctx, Fn fn) {
-    grpc::ServerUnaryReactor* reactor = ctx->DefaultReactor();
-    if (!Authorized(token_, ctx)) {
-      reactor->Finish(kUnauthenticated);
-      return reactor;
-    }
-    pool_->Submit([reactor, fn = std::move(fn)]() mutable { reactor->Finish(Guard(fn)); });
-    return reactor;
+    return GuardedUnary(ctx, token_, pool_, std::move(fn));
   }
 
   grpc::ServerUnaryReactor* Register(grpc::CallbackServerContext* ctx, const v1::RegisterRequest* req,
@@ -466,39 +490,23 @@ class FarmServer::WorkerServiceImpl final : public v1::WorkerService::CallbackSe
                                                              v1::CompleteTaskResponse* resp) override {
     if (!Authorized(token_, ctx)) return new RejectReadReactor<v1::TaskResultChunk>(kUnauthenticated);
     struct State {
-      bool first = true;
       std::string worker, lease;
-      uint64_t size = 0;
       Bytes data;
     };
     auto state = std::make_shared<State>();
-    const uint64_t limit = c_.options().max_result_bytes;
-    auto on_chunk = [state, limit](v1::TaskResultChunk& chunk) -> grpc::Status {
-      return Guard([&] {
-        if (state->first) {
-          state->first = false;
-          state->worker = chunk.worker_id();
-          state->lease = chunk.lease_id();
-          state->size = chunk.total_size();
-          if (state->size > limit)
-            throw FarmError(FarmError::Code::kResourceExhausted, "result of " + std::to_string(state->size) +
-                                                                     " bytes exceeds the limit of " + std::to_string(limit));
-          state->data.reserve(state->size);
-        }
-        if (state->data.size() + chunk.data().size() > state->size)
-          throw FarmError(FarmError::Code::kInvalidArgument, "result larger than its declared size");
-        state->data.insert(state->data.end(), chunk.data().begin(), chunk.data().end());
-      });
+    SizedStreamReader<v1::TaskResultChunk>::Handlers h;
+    h.what = "result";
+    h.limit = c_.options().max_result_bytes;
+    h.limit_option = "the coordinator's result limit";
+    h.open = [state](const v1::TaskResultChunk& chunk) {
+      state->worker = chunk.worker_id();
+      state->lease = chunk.lease_id();
+      state->data.reserve(std::min<uint64_t>(chunk.total_size(), uint64_t(kMaxMessageBytes)));
+      return uint64_t(chunk.total_size());
     };
-    auto on_end = [this, state, resp]() -> grpc::Status {
-      return Guard([&] {
-        if (state->first) throw FarmError(FarmError::Code::kInvalidArgument, "empty result stream");
-        if (state->data.size() != state->size)
-          throw FarmError(FarmError::Code::kInvalidArgument, "result stream ended early");
-        resp->set_accepted(c_.Complete(state->worker, state->lease, state->data));
-      });
-    };
-    return new ChunkReadReactor<v1::TaskResultChunk>(pool_, on_chunk, on_end);
+    h.append = [state](const std::string& data) { state->data.insert(state->data.end(), data.begin(), data.end()); };
+    h.close = [this, state, resp] { resp->set_accepted(c_.Complete(state->worker, state->lease, state->data)); };
+    return new SizedStreamReader<v1::TaskResultChunk>(pool_, std::move(h));
   }
 
   grpc::ServerWriteReactor<v1::BlobChunk>* FetchBlob(grpc::CallbackServerContext* ctx,

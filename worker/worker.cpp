@@ -135,9 +135,7 @@ Worker::~Worker() {
 }
 
 void Worker::Prepare(grpc::ClientContext* ctx, double timeout_s) const {
-  ctx->set_deadline(std::chrono::system_clock::now() +
-                    std::chrono::milliseconds(int64_t(timeout_s * 1000.0)));
-  if (!options_.token.empty()) ctx->AddMetadata("authorization", "Bearer " + options_.token);
+  PrepareCall(ctx, options_.token, timeout_s);
 }
 
 void Worker::Stop(bool hand_back) {
@@ -383,21 +381,11 @@ bool Worker::RunOneTask() {
     Prepare(&ctx, options_.rpc_timeout_s + double(bytes.size()) / 1e6);
     v1::CompleteTaskResponse resp;
     auto writer = stub_->CompleteTask(&ctx, &resp);
-    size_t offset = 0;
-    do {
-      v1::TaskResultChunk chunk;
-      if (offset == 0) {
-        chunk.set_worker_id(worker_id_);
-        chunk.set_lease_id(lease.lease_id());
-        chunk.set_total_size(bytes.size());
-      }
-      const size_t n = std::min(kChunkBytes, bytes.size() - offset);
-      chunk.set_data(reinterpret_cast<const char*>(bytes.data()) + offset, n);
-      offset += n;
-      if (!writer->Write(chunk)) break;
-    } while (offset < bytes.size());
-    writer->WritesDone();
-    grpc::Status st = writer->Finish();
+    const grpc::Status st = WriteChunked(*writer, bytes.data(), bytes.size(), [&](v1::TaskResultChunk& chunk) {
+      chunk.set_worker_id(worker_id_);
+      chunk.set_lease_id(lease.lease_id());
+      chunk.set_total_size(bytes.size());
+    });
     if (st.ok()) {
       ++tasks_done_;
       return true;

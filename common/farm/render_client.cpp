@@ -33,11 +33,7 @@ bool Retryable(grpc::StatusCode c) {
 RenderClient::RenderClient(std::shared_ptr<grpc::Channel> channel, std::string token, double timeout_s)
     : stub_(v1::RenderService::NewStub(channel)), token_(std::move(token)), timeout_s_(timeout_s) {}
 
-void RenderClient::Prepare(grpc::ClientContext* ctx, double timeout_s) const {
-  ctx->set_deadline(std::chrono::system_clock::now() +
-                    std::chrono::milliseconds(int64_t(timeout_s * 1000.0)));
-  if (!token_.empty()) ctx->AddMetadata("authorization", "Bearer " + token_);
-}
+void RenderClient::Prepare(grpc::ClientContext* ctx, double timeout_s) const { PrepareCall(ctx, token_, timeout_s); }
 
 std::string RenderClient::UploadBlob(const std::string& data) {
   const std::string sha = Sha256Hex(data);
@@ -45,20 +41,10 @@ std::string RenderClient::UploadBlob(const std::string& data) {
   Prepare(&ctx, timeout_s_ + double(data.size()) / 1e6);  // a minute plus 1 s per MB
   v1::UploadBlobResponse resp;
   auto writer = stub_->UploadBlob(&ctx, &resp);
-  size_t offset = 0;
-  do {
-    v1::BlobChunk chunk;
-    if (offset == 0) {
-      chunk.set_sha256(sha);
-      chunk.set_total_size(data.size());
-    }
-    const size_t n = std::min(kChunkBytes, data.size() - offset);
-    chunk.set_data(data.substr(offset, n));
-    offset += n;
-    if (!writer->Write(chunk)) break;  // the server ended the call: Finish has its status
-  } while (offset < data.size());
-  writer->WritesDone();
-  ThrowIfError(writer->Finish());
+  ThrowIfError(WriteChunked(*writer, data.data(), data.size(), [&](v1::BlobChunk& chunk) {
+    chunk.set_sha256(sha);
+    chunk.set_total_size(data.size());
+  }));
   return sha;
 }
 

@@ -92,6 +92,11 @@ grpc::ChannelArguments FarmChannelArguments() {
   return args;
 }
 
+void PrepareCall(grpc::ClientContext* ctx, const std::string& token, double timeout_s) {
+  ctx->set_deadline(std::chrono::system_clock::now() + std::chrono::milliseconds(int64_t(timeout_s * 1000.0)));
+  if (!token.empty()) ctx->AddMetadata("authorization", "Bearer " + token);
+}
+
 bool TokenMatches(const std::string& expected, const std::string& header_value) {
   const std::string want = "Bearer " + expected;
   unsigned diff = want.size() != header_value.size();

@@ -4,9 +4,13 @@
 
 #include <grpcpp/grpcpp.h>
 
+#include <algorithm>
+#include <chrono>
 #include <memory>
 #include <stdexcept>
 #include <string>
+
+#include "common/farm/farm_protocol.h"
 
 namespace lightfarm {
 
@@ -47,5 +51,27 @@ grpc::ChannelArguments FarmChannelArguments();
 
 // "Bearer <token>" metadata check, constant time in the token's length.
 bool TokenMatches(const std::string& expected, const std::string& header_value);
+
+// Every client call: a deadline timeout_s from now and, when there is one, the bearer token.
+void PrepareCall(grpc::ClientContext* ctx, const std::string& token, double timeout_s);
+
+// Streams `size` bytes through a client writer in kChunkBytes messages (at least one, so an
+// empty payload still sends its header); header(msg) fills the first message's other fields.
+// Stops writing when the server ends the call early; returns the call's status.
+template <typename Msg, typename Header>
+grpc::Status WriteChunked(grpc::ClientWriter<Msg>& writer, const void* data, size_t size, Header header) {
+  const char* bytes = static_cast<const char*>(data);
+  size_t offset = 0;
+  do {
+    Msg chunk;
+    if (offset == 0) header(chunk);
+    const size_t n = std::min(kChunkBytes, size - offset);
+    chunk.set_data(bytes + offset, n);
+    offset += n;
+    if (!writer.Write(chunk)) break;  // the server ended the call: Finish has its status
+  } while (offset < size);
+  writer.WritesDone();
+  return writer.Finish();
+}
 
 }  // namespace lightfarm
