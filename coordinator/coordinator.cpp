@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "common/farm/proto_convert.h"
+#include "common/farm/stage_engine.h"
 #include "common/gather/auto_method.h"
 #include "common/image/image_io.h"
 #include "common/util/error.h"
@@ -316,9 +317,10 @@ bool Coordinator::Preview(const std::string& job_id, uint64_t have_tiles, JobPre
       if (t.state == TaskStateCode::kDone) done.emplace_back(t.spec, t.result_sha);
   }
   // Assemble outside the lock: the finished tiles (in task order) into a film, the rest black.
-  GatherOutcome partial = StartOutcome(*plan);
+  std::vector<std::pair<SubMatrixTask, TaskOutput>> tiles;
   for (const auto& [spec_bytes, sha] : done)
-    AddFinalOutput(*plan, DeserializeTask(spec_bytes), DeserializeTaskOutput(blobs_->Get(sha)), &partial);
+    tiles.emplace_back(DeserializeTask(spec_bytes), DeserializeTaskOutput(blobs_->Get(sha)));
+  GatherOutcome partial = PartialOutcome(*plan, tiles);
   uint64_t nan_samples = 0;
   Image image = AssembleImage(*plan, partial, &nan_samples);
   const double shrink = std::min(1.0, double(JobPreview::kMaxSide) / std::max(image.width, image.height));
@@ -661,7 +663,7 @@ void Coordinator::PlanJob(int64_t id) {
       artifact_sha = artifacts.at(stage - 1);
       artifact = blobs_->Get(artifact_sha);
     }
-    std::vector<SubMatrixTask> specs = plan->method->PlanStage(stage, plan->context(), plan->tasks, artifact);
+    std::vector<SubMatrixTask> specs = StageEngine(*plan).Tasks(stage, artifact);
     store_->InsertTasks(id, stage, int(specs.size()));
     records = store_->LoadTasks(id, stage);
     for (const SubMatrixTask& s : specs) {
@@ -697,8 +699,8 @@ void Coordinator::PlanJob(int64_t id) {
   job.receivers_sha = receivers_sha;
   job.artifact_sha = artifact_sha;
   job.clamp = plan->matrix_options.clamp;
-  job.stage_count = plan->method->stage_count();
-  job.stage_name = plan->method->stage_name(stage);
+  job.stage_count = StageEngine(*plan).stage_count();
+  job.stage_name = StageEngine(*plan).stage_name(stage);
   job.tasks = std::move(tasks);
   job.tasks_done = 0;
   for (const Task& t : job.tasks) job.tasks_done += t.state == TaskStateCode::kDone;
@@ -728,27 +730,27 @@ void Coordinator::AdvanceStage(int64_t id) {
     for (const Task& t : job.tasks) results.push_back(t.result_sha);
     job.times.Add(job.stage_name, Seconds(Clock::now() - job.stage_started));
   }
-  const GatherMethod& method = *plan->method;
+  const StageEngine engine(*plan);
   try {
-    if (stage + 1 >= method.stage_count()) {
+    if (engine.is_final(stage)) {
       FinishJob(id, plan, stage);
       return;
     }
-    // Combine this stage's payloads into the next stage's input (Hašan 2007: sample rows →
-    // cluster → accumulate columns), as RunStagesLocally does.
+    // This stage's outputs (task order) into the next stage's input, persisted first so that a
+    // restarted coordinator resumes from it.
     std::vector<TaskOutput> outputs;
     for (const std::string& sha : results) outputs.push_back(DeserializeTaskOutput(blobs_->Get(sha)));
-    StageArtifact artifact = method.Combine(stage, plan->context(), outputs);
+    StageArtifact artifact = engine.Combine(stage, outputs);
     std::string artifact_sha = blobs_->Put(artifact);
     store_->SetArtifact(id, stage, artifact_sha);
-    std::vector<SubMatrixTask> specs = method.PlanStage(stage + 1, plan->context(), plan->tasks, artifact);
+    std::vector<SubMatrixTask> specs = engine.Tasks(stage + 1, artifact);
     store_->InsertTasks(id, stage + 1, int(specs.size()));
     store_->SetJobStage(id, stage + 1);
     std::lock_guard lock(mu_);
     Job& job = jobs_.at(id);
     if (job.state != v1::JOB_STATE_RUNNING) return;
     job.stage = stage + 1;
-    job.stage_name = method.stage_name(job.stage);
+    job.stage_name = engine.stage_name(job.stage);
     job.artifact_sha = artifact_sha;
     job.tasks.clear();
     for (const SubMatrixTask& s : specs) {
@@ -788,21 +790,18 @@ void Coordinator::FinishJob(int64_t id, std::shared_ptr<Plan> plan, int final_st
     root = job.manifest.root();
   }
   const auto t_film = Clock::now();
-  // Sum every stage's outputs in (stage, task) order, exactly as RunStagesLocally does, so the
-  // image and the counters are those of the embedded path.
-  GatherOutcome outcome = StartOutcome(*plan);
+  // Every stage's outputs in (stage, task) order (the store's), as the stage engine requires.
+  StageEngine engine(*plan);
   uint64_t attempts = 0, tasks_recorded = 0;
   for (const TaskRecord& r : store_->LoadAllTasks(id)) {
     attempts += uint64_t(r.attempts);
     ++tasks_recorded;
     if (r.state != int(TaskStateCode::kDone)) throw std::runtime_error("task " + std::to_string(r.task_id) + " has no result");
     TaskOutput out = DeserializeTaskOutput(blobs_->Get(r.result_sha));
-    outcome.counters.Add(out.counters);
-    for (const auto& [k, v] : out.stats) outcome.method_stats[k] += v;
-    ++outcome.tasks;
-    if (r.stage != final_stage) continue;
-    AddFinalOutput(*plan, DeserializeTask(specs.at(size_t(r.task_id))), out, &outcome);
+    engine.Count(out);
+    if (r.stage == final_stage) engine.AddFinal(DeserializeTask(specs.at(size_t(r.task_id))), out);
   }
+  const GatherOutcome& outcome = engine.outcome();
   uint64_t nan_samples = 0;
   Image image = AssembleImage(*plan, outcome, &nan_samples);
   const std::string exr = options_.state_dir + "/jobs/" + std::to_string(id) + "/result.exr";

@@ -4,6 +4,7 @@
 
 #include <chrono>
 
+#include "common/farm/stage_engine.h"
 #include "common/gather/auto_method.h"
 #include "common/image/film.h"
 #include "common/image/filter.h"
@@ -239,29 +240,25 @@ Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, Ph
 
 GatherOutcome RunStagesLocally(const Plan& plan, const ProgressFn& progress, PhaseTimes* times) {
   PhaseTimer timer(times);
-  const GatherMethod& method = *plan.method;
+  StageEngine engine(plan);
   const GatherContext ctx = plan.context();
-  GatherOutcome outcome = StartOutcome(plan);
   StageArtifact artifact;
-  const int stages = method.stage_count();
-  for (int stage = 0; stage < stages; ++stage) {
-    std::vector<SubMatrixTask> tasks = method.PlanStage(stage, ctx, plan.tasks, artifact);
+  for (int stage = 0; stage < engine.stage_count(); ++stage) {
+    const std::vector<SubMatrixTask> tasks = engine.Tasks(stage, artifact);
     std::vector<TaskOutput> outputs(tasks.size());
     for (size_t t = 0; t < tasks.size(); ++t) {
-      outputs[t] = RunGatherTask(method, ctx, tasks[t], artifact);
-      outcome.counters.Add(outputs[t].counters);
-      for (const auto& [k, v] : outputs[t].stats) outcome.method_stats[k] += v;
-      if (progress) progress(method.stage_name(stage), t + 1, tasks.size());
+      outputs[t] = RunGatherTask(*plan.method, ctx, tasks[t], artifact);
+      engine.Count(outputs[t]);
+      if (progress) progress(engine.stage_name(stage), t + 1, tasks.size());
     }
-    outcome.tasks += tasks.size();
-    if (stage + 1 < stages) {
-      artifact = method.Combine(stage, ctx, outputs);
+    if (!engine.is_final(stage)) {
+      artifact = engine.Combine(stage, outputs);
     } else {
-      for (size_t t = 0; t < tasks.size(); ++t) AddFinalOutput(plan, tasks[t], outputs[t], &outcome);
+      for (size_t t = 0; t < tasks.size(); ++t) engine.AddFinal(tasks[t], outputs[t]);
     }
-    timer.End(method.stage_name(stage));
+    timer.End(engine.stage_name(stage));
   }
-  return outcome;
+  return std::move(engine.outcome());
 }
 
 void SampleRows(const Plan& plan, const CameraSample& cs, std::vector<uint32_t>* rows) {

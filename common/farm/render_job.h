@@ -79,7 +79,7 @@ struct GatherOutcome {
 using ProgressFn = std::function<void(const std::string& phase, size_t done, size_t total)>;
 
 // Runs every stage of the plan's method in this process (tasks in id order; each task is
-// parallel inside), combining between stages as the coordinator would.
+// parallel inside), driving the StageEngine (stage_engine.h) as the coordinator does.
 GatherOutcome RunStagesLocally(const Plan& plan, const ProgressFn& progress, PhaseTimes* times);
 
 // The matrix rows a camera sample's radiance sums: its shading point's row, then its eye
@@ -91,14 +91,14 @@ RGB SampleRadiance(const Plan& plan, const CameraSample& cs, const std::vector<R
 
 // The final stage's rows: the matrix rows, or the pixels for a film method.
 size_t FinalRows(const Plan& plan);
-// An outcome with no final output added yet.
+// An outcome with no final output added yet (StageEngine::outcome starts from it).
 GatherOutcome StartOutcome(const Plan& plan);
 // Whether a final-stage output fits its task (row count, row weights for film methods, rows in
 // range): "" when it does, else what is wrong. The coordinator checks each worker's result so.
 std::string CheckFinalOutput(const Plan& plan, const SubMatrixTask& task, const TaskOutput& out);
 // Adds a final-stage output: matrix methods set each row exactly once, film methods add their
-// pixel sums. Called in task-id order by every driver (embedded, coordinator, preview), so they
-// all produce the same bits. Throws std::runtime_error when the output does not fit.
+// pixel sums (StageEngine::AddFinal, in task-id order). Throws std::runtime_error when the
+// output does not fit.
 void AddFinalOutput(const Plan& plan, const SubMatrixTask& task, const TaskOutput& out,
                     GatherOutcome* outcome);
 
