@@ -635,26 +635,21 @@ void Coordinator::PlanJob(int64_t id) {
     }
     const RenderSettings settings = FromProto(settings_proto);
     try {
-      // Built in place: the LightingMatrix refers to the plan's receivers and lights, so a
-      // moved Plan would leave it dangling.
-      plan.reset(new Plan(BuildPlan(dir + "/" + manifest.root(), settings, &times)));
-      if (&plan->matrix->receivers() != &plan->receivers || &plan->matrix->lights() != &plan->lights)
-        plan->matrix = std::make_unique<LightingMatrix>(*plan->scene, plan->receivers, plan->lights,
-                                                        plan->matrix_options);
+      plan = std::make_shared<Plan>(BuildPlan(dir + "/" + manifest.root(), settings, &times));
     } catch (const SceneError& e) {
       // Name the file as the user knows it: relative to the scene's directory.
       throw std::runtime_error(ReplaceAll(e.what(), dir + "/", ""));
     }
-    if (plan->receivers.width > options_.max_resolution || plan->receivers.height > options_.max_resolution)
-      throw std::runtime_error("the scene's resolution " + std::to_string(plan->receivers.width) + "x" +
-                               std::to_string(plan->receivers.height) + " exceeds the limit of " +
+    if (plan->receivers->width > options_.max_resolution || plan->receivers->height > options_.max_resolution)
+      throw std::runtime_error("the scene's resolution " + std::to_string(plan->receivers->width) + "x" +
+                               std::to_string(plan->receivers->height) + " exceeds the limit of " +
                                std::to_string(options_.max_resolution) + " per axis");
-    if (plan->receivers.spp > options_.max_spp)
-      throw std::runtime_error("the method's default of " + std::to_string(plan->receivers.spp) +
+    if (plan->receivers->spp > options_.max_spp)
+      throw std::runtime_error("the method's default of " + std::to_string(plan->receivers->spp) +
                                " samples per pixel exceeds the limit of " + std::to_string(options_.max_spp) +
                                " (set spp)");
-    lights_sha = blobs_->Put(SerializeLightSet(plan->lights));
-    receivers_sha = blobs_->Put(SerializeReceiverSet(plan->receivers));
+    lights_sha = blobs_->Put(SerializeLightSet(*plan->lights));
+    receivers_sha = blobs_->Put(SerializeReceiverSet(*plan->receivers));
     // The stage to (re)start: its input artifact is the previous stage's.
     StageArtifact artifact;
     if (stage > 0) {

@@ -15,8 +15,6 @@
 #include "common/farm/proto_convert.h"
 #include "common/farm/rpc.h"
 #include "common/farm/serialize.h"
-#include "common/gather/auto_method.h"
-#include "common/scene/effects.h"
 #include "common/scene/scene_description.h"
 
 namespace lightfarm {
@@ -96,17 +94,10 @@ void BlobCache::Adopt(const std::string& sha, const std::string& tmp_path) {
 
 // --- Worker -------------------------------------------------------------------------------------
 
-// What a job's tasks need, rebuilt from its blobs: the scene, the plan's lights and receivers,
-// the light tree when the method needs one, the lighting matrix and the method.
+// What a job's tasks need: its plan, rebuilt from the coordinator's blobs (RebuildPlan).
 struct Worker::JobRuntime {
   std::string key;
-  std::unique_ptr<Scene> scene;
-  LightSet lights;
-  ReceiverSet receivers;
-  std::unique_ptr<LightTree> tree;
-  std::unique_ptr<LightingMatrix> matrix;
-  std::unique_ptr<GatherMethod> method;
-  GatherContext context() const { return GatherContext{*matrix, tree.get()}; }
+  Plan plan;
 };
 
 Worker::Worker(std::shared_ptr<grpc::Channel> channel, WorkerOptions options)
@@ -249,28 +240,9 @@ std::shared_ptr<Worker::JobRuntime> Worker::Runtime(const v1::JobContext& job) {
     fs::copy_file(FetchBlob(f.sha256()), dir / rel);
   }
   const RenderSettings settings = FromProto(job.settings());
-  SceneDescription desc = ParseSceneFile((dir / job.scene().root()).string());
-  SceneBuildOptions build;
-  build.width = settings.width;
-  build.height = settings.height;
-  build.filter = settings.filter;
-  rt->scene = Scene::Build(desc, build);
-  rt->lights = DeserializeLightSet(ReadBytes(FetchBlob(job.lights_sha256())));
-  rt->receivers = DeserializeReceiverSet(ReadBytes(FetchBlob(job.receivers_sha256())));
-  // `auto` resolves as the coordinator's plan did: from the scene's effects and requested lights.
-  const OptionMap params = OptionMap::Parse(settings.params);
-  MatrixOptions mopt;
-  mopt.clamp = job.clamp();
-  ReadMatrixParams(params, settings.seed, &mopt);  // as the plan does
-  rt->method = CreateGatherMethod(
-      ResolveGatherMethodName(settings.method, ComputeEffects(*rt->scene), settings.lights, params),
-      params);
-  // The sharp-lobe split as the plan made it (matrix methods only; a path tracer samples the
-  // scene's own BSDFs), after `auto` resolved on the scene's own effects.
-  if (!rt->method->renders_film()) rt->scene->SetSharpAlpha(SharpAlpha(mopt, settings.lights));
-  if (rt->method->needs_light_tree())
-    rt->tree = std::make_unique<LightTree>(LightTree::Build(rt->lights, settings.seed));
-  rt->matrix = std::make_unique<LightingMatrix>(*rt->scene, rt->receivers, rt->lights, mopt);
+  rt->plan = RebuildPlan(ParseSceneFile((dir / job.scene().root()).string()), settings, job.clamp(),
+                         DeserializeLightSet(ReadBytes(FetchBlob(job.lights_sha256()))),
+                         DeserializeReceiverSet(ReadBytes(FetchBlob(job.receivers_sha256()))));
   runtime_ = rt;
   return rt;
 }
@@ -308,9 +280,7 @@ bool Worker::RunOneTask() {
     rt = Runtime(lease.job());
     task = DeserializeTask(ByteView(reinterpret_cast<const uint8_t*>(lease.task().data()), lease.task().size()));
     // Matrix methods' rows index the lighting matrix, film methods' the pixels.
-    const size_t row_limit = rt->method->renders_film()
-                                 ? size_t(rt->receivers.width) * size_t(rt->receivers.height)
-                                 : rt->matrix->rows();
+    const size_t row_limit = FinalRows(rt->plan);
     for (uint32_t r : task.rows)
       if (r >= row_limit) throw std::runtime_error("task row " + std::to_string(r) + " out of range");
     if (!lease.artifact_sha256().empty()) artifact = ReadBytes(FetchBlob(lease.artifact_sha256()));
@@ -328,7 +298,7 @@ bool Worker::RunOneTask() {
   tbb::task_group group;
   auto future = std::async(std::launch::async, [&] {
     TaskOutput out;
-    group.run_and_wait([&] { out = RunGatherTask(*rt->method, rt->context(), task, artifact); });
+    group.run_and_wait([&] { out = RunGatherTask(*rt->plan.method, rt->plan.context(), task, artifact); });
     return out;
   });
   const auto beat = std::chrono::milliseconds(std::max<uint32_t>(20, lease_timeout_ms_ / 4));

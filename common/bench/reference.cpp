@@ -128,9 +128,9 @@ BenchReference ComputeReference(const ReferenceRequest& r) {
   s.method = "brute";
   PhaseTimes times;
   Plan plan = BuildPlan(r.scene, s, &times);
-  const int w = plan.receivers.width, h = plan.receivers.height;
+  const int w = plan.receivers->width, h = plan.receivers->height;
   BenchReference ref;
-  ref.lights = plan.lights.size();
+  ref.lights = plan.lights->size();
   MatrixCounters counters;
   if (r.pixels == 0 || r.pixels >= size_t(w) * size_t(h)) {
     GatherOutcome outcome = RunStagesLocally(plan, nullptr, &times);
@@ -146,7 +146,7 @@ BenchReference ComputeReference(const ReferenceRequest& r) {
   std::vector<uint8_t> chosen(size_t(w) * size_t(h), 0);
   for (uint32_t p : ref.pixels) chosen[p] = 1;
   std::vector<uint32_t> rows;
-  for (const CameraSample& cs : plan.receivers.samples)
+  for (const CameraSample& cs : plan.receivers->samples)
     if (chosen[cs.pixel]) SampleRows(plan, cs, &rows);
   std::sort(rows.begin(), rows.end());
   rows.erase(std::unique(rows.begin(), rows.end()), rows.end());
@@ -160,7 +160,7 @@ BenchReference ComputeReference(const ReferenceRequest& r) {
   for (const MatrixCounters& c : per_row) counters.Add(c);
   const double gather_seconds = std::chrono::duration<double>(Clock::now() - t_gather).count();
   Film film(w, h);
-  for (const CameraSample& cs : plan.receivers.samples) {
+  for (const CameraSample& cs : plan.receivers->samples) {
     if (chosen[cs.pixel]) film.AddSample(int(cs.pixel), SampleRadiance(plan, cs, sums), cs.weight);
   }
   ref.image = film.Resolve();

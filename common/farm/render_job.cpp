@@ -59,34 +59,60 @@ std::vector<SubMatrixTask> FilmTasks(int width, int height, int spp, int tile, i
   return tasks;
 }
 
-}  // namespace
+// The steps BuildPlan and RebuildPlan share, so a worker's plan is the coordinator's.
 
-Plan::Plan(Plan&& other) noexcept { *this = std::move(other); }
-
-Plan& Plan::operator=(Plan&& other) noexcept {
-  if (this == &other) return *this;
-  scene = std::move(other.scene);
-  effects = other.effects;
-  receivers = std::move(other.receivers);
-  lights = std::move(other.lights);
-  tree = std::move(other.tree);
-  method = std::move(other.method);
-  tasks = std::move(other.tasks);
-  method_rule = std::move(other.method_rule);
-  matrix_options = other.matrix_options;
-  clamp = other.clamp;
-  matrix.reset();
-  other.matrix.reset();
-  if (scene) matrix = std::make_unique<LightingMatrix>(*scene, receivers, lights, matrix_options);
-  return *this;
+// The scene as the settings override it (resolution, pixel filter).
+std::unique_ptr<Scene> BuildSceneFor(const SceneDescription& desc, const RenderSettings& settings) {
+  SceneBuildOptions build;
+  build.width = settings.width;
+  build.height = settings.height;
+  build.filter = settings.filter;
+  return Scene::Build(desc, build);
 }
+
+// The clamp and the matrix's --param keys.
+void ReadPlanMatrixOptions(const OptionMap& params, const RenderSettings& settings, double clamp, Plan* plan) {
+  plan->clamp = clamp;
+  plan->matrix_options.clamp = float(clamp);
+  ReadMatrixParams(params, settings.seed, &plan->matrix_options);
+}
+
+// `auto` resolved on the scene's effects (auto_method.h), or the method named.
+void ChooseMethod(const RenderSettings& settings, const OptionMap& params, Plan* plan) {
+  if (settings.method == kAutoMethod) {
+    const AutoMethodChoice choice = ResolveAutoMethod(plan->effects, settings.lights, params);
+    spdlog::info("method auto resolved to {} (rule: {})", choice.method, choice.rule);
+    plan->method = CreateGatherMethod(choice.method, params);
+    plan->method_rule = choice.rule;
+  } else {
+    plan->method = CreateGatherMethod(settings.method, params);
+    plan->method_rule = settings.method_rule;
+  }
+}
+
+// The sharp-lobe split, before any BSDF is read: matrix methods only (a film method traces the
+// scene's own BSDFs).
+void ApplySharpSplit(const RenderSettings& settings, Plan* plan) {
+  if (!plan->method->renders_film()) plan->scene->SetSharpAlpha(SharpAlpha(plan->matrix_options, settings.lights));
+}
+
+// The light tree (when the method needs one) and the matrix over the plan's receivers and lights.
+void AttachMatrix(const RenderSettings& settings, Plan* plan) {
+  if (plan->method->renders_film()) {
+    plan->matrix_options.caustic_photons = 0;  // the path tracer finds caustics by itself
+  } else if (plan->method->needs_light_tree()) {
+    plan->tree = std::make_unique<LightTree>(LightTree::Build(*plan->lights, settings.seed));
+  }
+  plan->matrix = std::make_unique<LightingMatrix>(*plan->scene, *plan->receivers, *plan->lights, plan->matrix_options);
+}
+
+}  // namespace
 
 Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, PhaseTimes* times) {
   PhaseTimer timer(times);
   OptionMap params = OptionMap::Parse(settings.params);
   Plan plan;
-  plan.clamp = params.GetDouble("clamp", 0.01, 0.0, 1.0);
-  plan.matrix_options.clamp = float(plan.clamp);
+  ReadPlanMatrixOptions(params, settings, params.GetDouble("clamp", 0.01, 0.0, 1.0), &plan);
   float direct_fraction = float(params.GetDouble("direct_fraction", 0.5, 0.0, 1.0));
   SlicingOptions slicing;
   slicing.rows_per_slice = size_t(params.GetInt("rows_per_slice", 800, 1, 1 << 24));
@@ -94,7 +120,6 @@ Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, Ph
   // Media rows and columns (eye segments, medium VPLs): h split points per eye ray (Huo 2016:
   // 16) and samples per segment element.
   const int segments_per_ray = int(params.GetInt("segments_per_ray", 16, 0, 1024));
-  ReadMatrixParams(params, settings.seed, &plan.matrix_options);
   // Eye-segment slices (Huo 2016, Sec. 4; segment_slicing.h): K = 0.008 × eye rays, clamped to
   // an average of [5/8, 5/4] × segment_rows_per_slice segments per slice (500–1000 for the
   // default 800, the range the paper reports); segment_refine=1 splits segments across slice
@@ -129,8 +154,7 @@ Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, Ph
   if (auto_method) {
     CheckGatherMethodOptions(settings.method, params);
   } else {
-    plan.method = CreateGatherMethod(settings.method, params);
-    plan.method_rule = settings.method_rule;
+    ChooseMethod(settings, params, &plan);
     read_film_params();
     params.RejectUnused();
   }
@@ -139,18 +163,11 @@ Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, Ph
 
   SceneDescription desc = ParseSceneFile(scene_path);
   timer.End("parse");
-  SceneBuildOptions build;
-  build.width = settings.width;
-  build.height = settings.height;
-  build.filter = settings.filter;
-  plan.scene = Scene::Build(desc, build);
+  plan.scene = BuildSceneFor(desc, settings);
   const Scene& scene = *plan.scene;
   plan.effects = ComputeEffects(scene);
   if (auto_method) {
-    const AutoMethodChoice choice = ResolveAutoMethod(plan.effects, settings.lights, params);
-    spdlog::info("method auto resolved to {} (rule: {})", choice.method, choice.rule);
-    plan.method = CreateGatherMethod(choice.method, params);
-    plan.method_rule = choice.rule;
+    ChooseMethod(settings, params, &plan);
     read_film_params();
     params.RejectUnused();
   }
@@ -159,12 +176,11 @@ Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, Ph
     // receiver set only carries the film's size and samples per pixel (the scene's Sampler
     // "pixelsamples" unless --spp overrides it).
     timer.End("build");
-    plan.receivers.width = scene.hints().width;
-    plan.receivers.height = scene.hints().height;
-    plan.receivers.spp = settings.spp > 0 ? settings.spp : std::max(1, scene.hints().pixel_samples);
-    plan.matrix_options.caustic_photons = 0;  // the path tracer finds caustics by itself
-    plan.matrix = std::make_unique<LightingMatrix>(scene, plan.receivers, plan.lights, plan.matrix_options);
-    plan.tasks = FilmTasks(plan.receivers.width, plan.receivers.height, plan.receivers.spp, film_tile,
+    plan.receivers->width = scene.hints().width;
+    plan.receivers->height = scene.hints().height;
+    plan.receivers->spp = settings.spp > 0 ? settings.spp : std::max(1, scene.hints().pixel_samples);
+    AttachMatrix(settings, &plan);
+    plan.tasks = FilmTasks(plan.receivers->width, plan.receivers->height, plan.receivers->spp, film_tile,
                            film_pass_spp, settings.seed);
     timer.End("plan");
     return plan;
@@ -179,8 +195,7 @@ Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, Ph
                  plan.method->name());
   timer.End("build");
 
-  // The sharp-lobe split, before any BSDF is read (the workers do the same).
-  plan.scene->SetSharpAlpha(SharpAlpha(plan.matrix_options, settings.lights));
+  ApplySharpSplit(settings, &plan);
   std::unique_ptr<Filter> filter = MakePixelFilter(scene.hints());
   FilterSampler filter_sampler(*filter);
   ReceiverOptions ropt;
@@ -189,10 +204,10 @@ Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, Ph
   ropt.max_depth = scene.hints().max_depth;
   ropt.segments_per_ray = media_rows ? segments_per_ray : -1;
   ropt.sharp_samples = plan.matrix_options.sharp_samples;
-  plan.receivers = GenerateReceivers(scene, filter_sampler, ropt);
+  *plan.receivers = GenerateReceivers(scene, filter_sampler, ropt);
   timer.End("receivers");
   // Segment slices before anything refers to the segments: refinement may split some of them.
-  std::vector<Slice> segment_slices = SliceSegments(scene, &plan.receivers, segment_slicing);
+  std::vector<Slice> segment_slices = SliceSegments(scene, plan.receivers.get(), segment_slicing);
   if (!segment_slices.empty()) timer.End("segment_slicing");
 
   LightGenerationOptions lopt;
@@ -201,18 +216,13 @@ Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, Ph
   lopt.max_depth = scene.hints().max_depth;
   lopt.seed = settings.seed;
   lopt.medium_lights = media_rows ? media_lights : MediumLights::kNone;
-  plan.lights = GenerateLights(scene, lopt);
+  *plan.lights = GenerateLights(scene, lopt);
   timer.End("lights");
-  if (plan.method->needs_light_tree()) {
-    plan.tree = std::make_unique<LightTree>(LightTree::Build(plan.lights, settings.seed));
-    timer.End("light_tree");
-  }
-
-  plan.matrix = std::make_unique<LightingMatrix>(scene, plan.receivers, plan.lights,
-                                                 plan.matrix_options);
+  AttachMatrix(settings, &plan);
+  if (plan.tree) timer.End("light_tree");
   // Row tiles: slices of receivers clustered by position and normal (slicing.h), one task each.
   std::vector<Slice> slices =
-      SliceReceivers(plan.receivers, Length(scene.bounds().Diagonal()), slicing);
+      SliceReceivers(*plan.receivers, Length(scene.bounds().Diagonal()), slicing);
   for (Slice& slice : slices) {
     SubMatrixTask task;
     task.task_id = uint32_t(plan.tasks.size());
@@ -235,6 +245,21 @@ Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, Ph
     plan.tasks.push_back(std::move(task));
   }
   timer.End("plan");
+  return plan;
+}
+
+Plan RebuildPlan(const SceneDescription& desc, const RenderSettings& settings, double clamp, LightSet lights,
+                 ReceiverSet receivers) {
+  const OptionMap params = OptionMap::Parse(settings.params);
+  Plan plan;
+  ReadPlanMatrixOptions(params, settings, clamp, &plan);
+  plan.scene = BuildSceneFor(desc, settings);
+  plan.effects = ComputeEffects(*plan.scene);
+  ChooseMethod(settings, params, &plan);
+  ApplySharpSplit(settings, &plan);
+  *plan.lights = std::move(lights);
+  *plan.receivers = std::move(receivers);
+  AttachMatrix(settings, &plan);
   return plan;
 }
 
@@ -264,7 +289,7 @@ GatherOutcome RunStagesLocally(const Plan& plan, const ProgressFn& progress, Pha
 void SampleRows(const Plan& plan, const CameraSample& cs, std::vector<uint32_t>* rows) {
   if (cs.point >= 0) rows->push_back(uint32_t(cs.point));
   // In-scattered light along the sample's eye segments (rows after the point rows).
-  const size_t npoints = plan.receivers.points.size();
+  const size_t npoints = plan.receivers->points.size();
   for (uint32_t k = 0; k < cs.segment_count; ++k)
     rows->push_back(uint32_t(npoints + size_t(cs.first_segment) + k));
 }
@@ -273,14 +298,14 @@ RGB SampleRadiance(const Plan& plan, const CameraSample& cs, const std::vector<R
   RGBAccum L;
   L.Add(cs.emitted);
   if (cs.point >= 0) L.Add(row_sums[cs.point]);
-  const size_t npoints = plan.receivers.points.size();
+  const size_t npoints = plan.receivers->points.size();
   for (uint32_t k = 0; k < cs.segment_count; ++k)
     L.Add(row_sums[npoints + size_t(cs.first_segment) + k]);
   return L.ToRGB();
 }
 
 size_t FinalRows(const Plan& plan) {
-  return plan.method->renders_film() ? size_t(plan.receivers.width) * size_t(plan.receivers.height)
+  return plan.method->renders_film() ? size_t(plan.receivers->width) * size_t(plan.receivers->height)
                                      : plan.matrix->rows();
 }
 
@@ -329,7 +354,7 @@ void AddFinalOutput(const Plan& plan, const SubMatrixTask& task, const TaskOutpu
 }
 
 Image AssembleImage(const Plan& plan, const GatherOutcome& outcome, uint64_t* nan_samples) {
-  Film film(plan.receivers.width, plan.receivers.height);
+  Film film(plan.receivers->width, plan.receivers->height);
   if (plan.method->renders_film()) {
     for (size_t p = 0; p < outcome.row_sums.size(); ++p) {
       const RGBAccum& s = outcome.row_sums[p];
@@ -339,7 +364,7 @@ Image AssembleImage(const Plan& plan, const GatherOutcome& outcome, uint64_t* na
     if (nan_samples) *nan_samples = nonfinite == outcome.method_stats.end() ? 0 : uint64_t(nonfinite->second);
     return film.Resolve();
   }
-  for (const CameraSample& cs : plan.receivers.samples)
+  for (const CameraSample& cs : plan.receivers->samples)
     film.AddSample(int(cs.pixel), SampleRadiance(plan, cs, outcome.row_sums), cs.weight);
   if (nan_samples) *nan_samples = film.nan_samples();
   return film.Resolve();
@@ -348,21 +373,21 @@ Image AssembleImage(const Plan& plan, const GatherOutcome& outcome, uint64_t* na
 nlohmann::json MakeStats(const Plan& plan, const RenderSettings& settings,
                          const GatherOutcome& outcome, uint64_t nan_samples,
                          const PhaseTimes& times, double total_seconds) {
-  const LightSetStats& ls = plan.lights.stats;
+  const LightSetStats& ls = plan.lights->stats;
   const MatrixCounters& counters = outcome.counters;
   nlohmann::json s;
   s["method"] = plan.method->name();
   s["method_requested"] = settings.method;
   if (!plan.method_rule.empty()) s["method_rule"] = plan.method_rule;
   s["seed"] = settings.seed;
-  s["resolution"] = {plan.receivers.width, plan.receivers.height};
-  s["spp"] = plan.receivers.spp;
+  s["resolution"] = {plan.receivers->width, plan.receivers->height};
+  s["spp"] = plan.receivers->spp;
   s["filter"] = plan.scene->hints().filter_type;
   s["effects"] = plan.effects.Names();
   s["lights"] = {{"vpl", ls.area_vpls + ls.surface_vpls},
                  {"vrl", ls.vrls},
                  {"medium_vpl", ls.medium_vpls},
-                 {"total", plan.lights.size()},
+                 {"total", plan.lights->size()},
                  {"requested", settings.lights},
                  {"area_vpl", ls.area_vpls},
                  {"surface_vpl", ls.surface_vpls},
@@ -371,27 +396,27 @@ nlohmann::json MakeStats(const Plan& plan, const RenderSettings& settings,
                  {"point", ls.point_lights},
                  {"directional", ls.directional_lights},
                  {"particle_paths", ls.particle_paths}};
-  s["receivers"] = {{"points", plan.receivers.points.size()},
-                    {"segments", plan.receivers.segments.size()},
-                    {"camera_samples", plan.receivers.samples.size()},
-                    {"specular_bounces", plan.receivers.stats.specular_bounces},
-                    {"escaped", plan.receivers.stats.escaped},
-                    {"transmittance_evals", plan.receivers.stats.transmittance_evals}};
+  s["receivers"] = {{"points", plan.receivers->points.size()},
+                    {"segments", plan.receivers->segments.size()},
+                    {"camera_samples", plan.receivers->samples.size()},
+                    {"specular_bounces", plan.receivers->stats.specular_bounces},
+                    {"escaped", plan.receivers->stats.escaped},
+                    {"transmittance_evals", plan.receivers->stats.transmittance_evals}};
   s["slices"] = plan.tasks.size();
   s["tasks"] = outcome.tasks;
   const size_t nrows = plan.matrix->rows();
-  const double full = double(nrows) * double(plan.lights.size());
+  const double full = double(nrows) * double(plan.lights->size());
   s["matrix"] = {{"rows", nrows},
-                 {"cols", plan.lights.size()},
+                 {"cols", plan.lights->size()},
                  {"elements_evaluated", counters.elements},
                  {"transmittance_evals", counters.transmittance_evals},
                  {"fraction_evaluated", full > 0 ? double(counters.elements) / full : 0.0}};
-  const double pixels = double(plan.receivers.width) * plan.receivers.height;
+  const double pixels = double(plan.receivers->width) * plan.receivers->height;
   const auto film_camera_rays = outcome.method_stats.find(plan.method->name() + ".camera_rays");
   s["rays"] = {{"shadow", counters.shadow_rays},
                {"camera", plan.method->renders_film() && film_camera_rays != outcome.method_stats.end()
                               ? uint64_t(film_camera_rays->second)
-                              : uint64_t(plan.receivers.stats.camera_rays)},
+                              : uint64_t(plan.receivers->stats.camera_rays)},
                {"shadow_per_pixel", double(counters.shadow_rays) / pixels}};
   // Share of the (unclamped) light reaching receivers that the clamp removed.
   double total_lum = 0;

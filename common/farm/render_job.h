@@ -34,19 +34,13 @@ struct RenderSettings {
 };
 
 // Everything a gather needs, built once per job (deterministic in the job seed).
+// The matrix refers to the scene, the receivers and the lights: each lives on the heap, so a plan
+// moves without touching them and the matrix stays valid.
 struct Plan {
-  Plan() = default;
-  // The matrix refers to `receivers` and `lights` by address, so a moved plan rebuilds its
-  // matrix against its own members (cheap: O(rows)); copies are not allowed.
-  Plan(Plan&& other) noexcept;
-  Plan& operator=(Plan&& other) noexcept;
-  Plan(const Plan&) = delete;
-  Plan& operator=(const Plan&) = delete;
-
   std::unique_ptr<Scene> scene;
   Effects effects;
-  ReceiverSet receivers;
-  LightSet lights;
+  std::unique_ptr<ReceiverSet> receivers = std::make_unique<ReceiverSet>();
+  std::unique_ptr<LightSet> lights = std::make_unique<LightSet>();
   std::unique_ptr<LightTree> tree;  // built when the method needs it
   std::unique_ptr<LightingMatrix> matrix;
   std::unique_ptr<GatherMethod> method;
@@ -65,6 +59,12 @@ struct PhaseTimes {
 // Parses and builds the scene and creates everything the gather needs. Validates settings and
 // --param first, so a typo fails before any expensive work.
 Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, PhaseTimes* times);
+
+// The plan a worker runs tasks of, rebuilt from the coordinator's: the scene from its
+// description, the plan's clamp, virtual lights and receivers; the method, the sharp-lobe split,
+// the light tree and the matrix by the steps BuildPlan takes. No tasks (the coordinator sends them).
+Plan RebuildPlan(const SceneDescription& desc, const RenderSettings& settings, double clamp, LightSet lights,
+                 ReceiverSet receivers);
 
 // The result of running all of a method's stages.
 struct GatherOutcome {

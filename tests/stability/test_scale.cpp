@@ -122,17 +122,17 @@ TEST(Scale, BrightAndDimLightsSumWithoutLoss) {
   settings.seed = 1;
   PhaseTimes times;
   const Plan plan = BuildPlan(dir.Write("mix.pbrt", scene), settings, &times);
-  ASSERT_EQ(plan.lights.size(), size_t(dim_count + 1));
+  ASSERT_EQ(plan.lights->size(), size_t(dim_count + 1));
   const GatherOutcome outcome = RunStagesLocally(plan, nullptr, &times);
-  ASSERT_EQ(outcome.row_sums.size(), plan.receivers.points.size());
+  ASSERT_EQ(outcome.row_sums.size(), plan.receivers->points.size());
   ASSERT_GT(outcome.row_sums.size(), 0u);
   double worst = 0, worst_float = 0;
   for (size_t i = 0; i < outcome.row_sums.size(); ++i) {
-    const ShadingPoint& sp = plan.receivers.points[i];
+    const ShadingPoint& sp = plan.receivers->points[i];
     // ρ/π · I · cos θ / d², each term and the sum in double.
     double exact = 0;
     float float_sum = 0;
-    for (const VirtualLight& l : plan.lights.lights) {
+    for (const VirtualLight& l : plan.lights->lights) {
       const double dx = double(l.p.x) - double(sp.p.x), dy = double(l.p.y) - double(sp.p.y),
                    dz = double(l.p.z) - double(sp.p.z);
       const double d2 = dx * dx + dy * dy + dz * dz;

@@ -33,8 +33,8 @@ size_t CompareFastAndGeneral(const std::string& scene, size_t lights) {
   general_options.diffuse_fast_path = false;
   MatrixOptions fast_options = plan.matrix_options;
   fast_options.diffuse_fast_path = true;
-  LightingMatrix general(*plan.scene, plan.receivers, plan.lights, general_options);
-  LightingMatrix fast(*plan.scene, plan.receivers, plan.lights, fast_options);
+  LightingMatrix general(*plan.scene, *plan.receivers, *plan.lights, general_options);
+  LightingMatrix fast(*plan.scene, *plan.receivers, *plan.lights, fast_options);
   const size_t rows = fast.rows(), cols = fast.cols();
   MatrixCounters cg, cf;
   size_t nonzero = 0;

@@ -299,7 +299,7 @@ TEST(Mrcs, MeanOverSeedsConvergesToBruteForce) {
       out[0] += rows[i].r;
       out[1] += rows[i].g;
       out[2] += rows[i].b;
-      uint32_t pixel = plan.receivers.samples[plan.receivers.points[i].sample].pixel;
+      uint32_t pixel = plan.receivers->samples[plan.receivers->points[i].sample].pixel;
       int qx = int(pixel % 8) / 4, qy = int(pixel / 8) / 4;
       out[size_t(3 + 2 * qy + qx)] += 0.2126 * rows[i].r + 0.7152 * rows[i].g + 0.0722 * rows[i].b;
     }
