@@ -22,6 +22,7 @@
 #include <cmath>
 #include <span>
 
+#include "common/util/check.h"
 #include "common/util/rng.h"
 
 namespace lightfarm {
@@ -404,7 +405,14 @@ LightTree LightTree::Build(const LightSet& lights, uint64_t seed) {
                       uint32_t(offsets[k]));
     base += uint32_t(2 * counts[k] - 1);
   }
+  CHECK_LE(size_t(base), tree.nodes_.size());
   tree.nodes_.resize(base);
+  // Every light in exactly one leaf: the cuts and the sampling methods depend on it.
+  std::vector<uint8_t> seen(n, 0);
+  for (uint32_t light : tree.order_) {
+    CHECK_LT(size_t(light), n);
+    CHECK_EQ(int(seen[light]++), 0);
+  }
   return tree;
 }
 

@@ -9,6 +9,7 @@
 
 #include "common/scene/effects.h"
 #include "common/scene/phase.h"
+#include "common/util/check.h"
 #include "common/util/sampling.h"
 
 namespace lightfarm {
@@ -404,6 +405,8 @@ void LightingMatrix::EvaluateBatched(size_t n, EntryFn entry, SinkFn sink,
     for (size_t k = 0; k < count; ++k) {
       uint32_t ri, lj;
       entry(begin + k, &ri, &lj);
+      DCHECK_LT(ri, rows());
+      DCHECK_LT(lj, cols());
       if (ri >= rows_.size()) {
         // Eye-segment row: integrated by its own batched samples.
         sink(begin + k, SegmentElement(ri - uint32_t(rows_.size()), lj, counters));
@@ -525,6 +528,8 @@ void LightingMatrix::EvaluateBatched(size_t n, EntryFn entry, SinkFn sink,
 
 void LightingMatrix::EvaluateEntries(std::span<const uint32_t> rows, std::span<const uint32_t> cols,
                                      std::span<RGB> out, MatrixCounters* counters) const {
+  CHECK_EQ(rows.size(), cols.size());
+  CHECK_EQ(out.size(), rows.size());
   EvaluateBatched(
       rows.size(),
       [&](size_t k, uint32_t* r, uint32_t* c) { *r = rows[k]; *c = cols[k]; },
@@ -539,6 +544,8 @@ RGB LightingMatrix::Element(uint32_t row, uint32_t col, MatrixCounters* counters
 }
 
 void LightingMatrix::Row(uint32_t row, std::span<RGB> out, MatrixCounters* counters) const {
+  CHECK_LT(row, rows());
+  CHECK_EQ(out.size(), cols());
   auto entry = [&](size_t k, uint32_t* r, uint32_t* c) { *r = row; *c = uint32_t(k); };
   auto store = [&](size_t k, RGB v) { out[k] = v; };
   EvaluateBatched<decltype(entry), decltype(store), BatchShape::kRow>(cols(), entry, store,
@@ -546,6 +553,7 @@ void LightingMatrix::Row(uint32_t row, std::span<RGB> out, MatrixCounters* count
 }
 
 RGBAccum LightingMatrix::RowSum(uint32_t row, MatrixCounters* counters) const {
+  CHECK_LT(row, rows());
   RGBAccum sum;
   // Values arrive per batch in light order (zeros first, then visible ones), so the double sum
   // is independent of threading.
@@ -558,6 +566,8 @@ RGBAccum LightingMatrix::RowSum(uint32_t row, MatrixCounters* counters) const {
 
 void LightingMatrix::Column(uint32_t col, std::span<const uint32_t> rows, std::span<RGB> out,
                             MatrixCounters* counters) const {
+  CHECK_LT(col, cols());
+  CHECK_EQ(out.size(), rows.size());
   auto entry = [&](size_t k, uint32_t* r, uint32_t* c) { *r = rows[k]; *c = col; };
   auto store = [&](size_t k, RGB v) { out[k] = v; };
   EvaluateBatched<decltype(entry), decltype(store), BatchShape::kColumn>(rows.size(), entry, store,
