@@ -20,9 +20,8 @@
 //     only the directions of U_Ω whose pivots (column-pivoted QR) exceed rank_tolerance = 0.1 of
 //     the largest; the others get coefficient 0. U is orthonormal, so a direction that is weak on
 //     a uniform Ω is one concentrated on rows Ω missed (a VPL's highlight in a corner); fitting it
-//     from Ω extrapolates noise over the rows it lives on. Measured on cornell-box 64², 20000
-//     lights: rank_tolerance 1e-8 (numerical rank only) rel_l2 0.097 / rel_l1 0.071 with 2.9% of
-//     the elements; 1e-2: 0.025 / 0.049 (1.9%); 0.1: 0.013 / 0.040 (1.3%); 0.3: 0.017 / 0.053.
+//     from Ω extrapolates noise over the rows it lives on. docs/methods/adaptive-completion.md has
+//     the measurements behind the choice.
 //  2. Node estimate (Sec. 5.1.2, Eq. 14): a node with more than K lights draws K columns with
 //     probability ∝ luminance of their power; e(node) = (1/K) Σ e_k / pdf_k in U's coordinates.
 //     A node with at most K lights evaluates each of them once (e(node) = Σ e_j, error 0):
@@ -40,30 +39,17 @@
 //     (1/d² down to the clamp distance on a few rows) that no low-rank basis observed on a uniform Ω
 //     represents: Ω misses the spike, the projection loses it, and Eq. 16 lets it pass because one
 //     column's loss is small next to the whole cut's energy. Summed over hundreds of such columns
-//     the loss is a large negative bias. Measured on volumetric-caustic 32² (2000 lights, METIS
-//     segment slices): ρ=1 σ=0 (every column full) rel_l1 0.013, defaults without this 0.156; the
-//     loss is in the columns completed from Ω, not in the tree sampling (β=0: still 0.143). So the
+//     the loss is a large negative bias. So the
 //     lights closer than near_distance × the slice's bounding-box diagonal to one of its receivers
 //     are taken out of the tree sampling (power 0 in the sampling prefix, skipped in exact nodes)
 //     and their columns are evaluated on every row and summed exactly. On eye-segment slices every
 //     non-directional light can be near; on surface slices only media lights, medium VPLs and VRLs
 //     (an oriented VPL lying on a receiving surface is damped by the cosines; counting those made
 //     cornell-box evaluate 60% of its elements). A VRL's distance is the segment's (it is near
-//     wherever it passes close, not only at its start). Measured with medium VPLs on
-//     volumetric-caustic 64², 2000 lights: near_distance 0: rel_l2 0.176 / rel_l1 0.072 with 8.1% of
-//     the elements; 0.05: 0.037 / 0.024 with 11.6%; 0.1: 0.016 / 0.013 with 15.9%. With VRLs (the
-//     default) at 32²: near VRLs on eye-segment slices only, rel_l1 0.030 with 38% of the
-//     elements; on surface slices too, 0.008 with 44%; at 64², 0.0095 with 23%. Scenes without
-//     media are unchanged.
-//     The price: near columns are most of the evaluated elements (64², 2000 lights: 80%; 128²,
-//     1000 lights: 68%), and their number grows linearly with the lights. Two cheaper splits were
-//     measured and rejected (64², 2000 lights, vs brute force): (i) exact only on the rows a light
-//     is near, the rest of its column zeroed there and left to the tree and the completion:
-//     rel_l1 0.026 with 10.5% of the elements (near_distance 0.2: 0.016 / 14.9%; 0.3: 0.011 /
-//     21.6%) — the zeroed rows are holes no basis of smooth columns represents; (ii) exact on its
-//     near rows, the other rows completed from Ω minus those rows (its own least squares, weight
-//     1, after the traversal): 0.046 with 8.6%, or 0.020 with 19% when a loss fraction above 0.1
-//     forces the full column — the far part of a near light's column is not in span(U) either.
+//     wherever it passes close, not only at its start). Scenes without media are unchanged. The
+//     price: near columns are most of the evaluated elements, and their number grows linearly
+//     with the lights; docs/methods/adaptive-completion.md has the measurements, and the two
+//     cheaper splits measured and rejected.
 //
 // Exact limit: with rho=1 (Ω = every row), sigma=0 (a column that loses anything on Ω is sampled
 // fully) and beta=0 (every node refined to ≤ K lights, each evaluated once), every light's column

@@ -40,9 +40,7 @@
 //   neighbors=8          nearest slices whose sampled rows join the slice's own in the local
 //                        refinement (capped by the plan's neighbour list, 8 by default).
 //   slice_rows=1         rows sampled per slice (the paper: one). With few slices the refinement
-//                        sees few rows: cornell-box 64² (5 slices), 20000 lights, one run each,
-//                        slice_rows=4 gave rel_l2 0.016 at 258 shadow rays per pixel, 1 gave
-//                        0.039 at 218, 16 gave 0.025 at 450.
+//                        sees few rows (docs/methods/lightslice.md).
 //   projection=50        random projection of R's columns for the global clustering (0: none;
 //                        skipped when R has no more rows than this).
 //   dark_share=auto      share of C_local for the lights dark on every local row (at least one

@@ -30,8 +30,7 @@
 //     (common/matrix/nmf_completion.h), once per RGB channel on the same Ω (the paper does not
 //     say; a channel has the rank of the geometry, stacking channels would add the colours to
 //     it). The solver lowers the rank until |Ω| ≥ 2 q(m + n − q) (its min_oversampling): with
-//     ~10-25 observed entries per row, q = 16 fits Ω and extrapolates noise elsewhere (measured
-//     on cornell-box 64², rel_l1 0.20 at q = 16 against 0.12 with the cap). When every entry is
+//     ~10-25 observed entries per row, q = 16 fits Ω and extrapolates noise elsewhere (docs/methods/sparse-completion.md). When every entry is
 //     observed the solver returns M itself (no factorisation), so with rate=1, merge_error=0 and
 //     global_cut ≥ number of lights (every column a single light, scale 1) the result equals
 //     brute force up to the order of the double sums.
@@ -40,9 +39,7 @@
 // Parameters (--param): global_cut (850), merge_error (0.005), rate (0.1), rank (16),
 // coarsen_samples (8), reference_rows (8; 0 disables coarsening), iterations (100, the paper's
 // cap), tolerance (1e-4).
-// merge_error was chosen on cornell-box (64² and 128², 20000 lights): 0.02 coarsens 850 nodes to
-// ~100 and leaves too few observed entries per row (rel_l1 0.18), 0.005 keeps ~200 (rel_l1
-// 0.10-0.12), 0.001 keeps ~350 and gains nothing.
+// merge_error: docs/methods/sparse-completion.md has the measurements that chose it.
 // Stats (summed over slices, so mean = stat / slices): observed_residual (per slice, the relative
 // observed-entry residual ‖P_Ω(XY − M)‖_F / ‖P_Ω(M)‖_F over the three channels), global_cut_nodes,
 // coarse_cut_nodes, observed_entries, reduced_entries (|M|), nmf_iterations (the three

@@ -26,9 +26,7 @@
 //   lighting-matrix slice are lights whose powers can differ by 12 orders of magnitude; on the raw
 //   values the least squares of the ADM only sees the brightest columns, the penalties (a fraction
 //   of the Gram matrices' mean eigenvalue) are far too large for the dim ones, and the iteration
-//   crawls. Measured on a rank-2 60×48 matrix with column scales 1e-6…1e6, 60% observed, 300
-//   iterations: row-sum error 0.16 with one global scale, 2.7e-5 with per-column scales
-//   (6.2e-5 for the same matrix with equal column scales; worst column 0.36 against 6.2e-4).
+//   crawls. (docs/methods/nmf-completion.md measures it.)
 //   The rank is invariant (M D⁻¹ has M's rank), and a denormal-scale or huge input behaves like
 //   a unit-scale one. observed_residual and the
 //   convergence test are measured on the scaled matrix (every column's relative fit counts);
@@ -39,14 +37,11 @@
 //   row sums need. sparse-completion therefore keeps the global scale (see there).
 // - Penalties: a fixed α, β suits neither the matrix's scale nor the balance between X and Y
 //   (XY = (XD)(D⁻¹Y) for any diagonal D > 0), and a penalty much larger than an eigenvalue of
-//   YYᵀ freezes that component of X at U. Measured on lighting-matrix slices (heavy-tailed
-//   values, singular values falling 50× within 16), fixed penalties stalled at observed residuals
-//   of 40–90% even with every entry observed, where a rank-16 SVD leaves 3–16%. Adaptive
-//   penalties α_k = c·tr(Y_k Y_kᵀ)/q, β_k = c·tr(X_{k+1}ᵀ X_{k+1})/q (a fraction c of the mean
-//   eigenvalue of the Gram matrix each is added to; c = penalty_scale = 0.1) reached 5–16% there
-//   and recover exact low-rank test matrices to 1e-3 within ~100 iterations. Changing the
-//   penalty between iterations is the usual varying-penalty ADMM (Boyd et al. 2011, Sec. 3.4.1);
-//   the multipliers are kept unscaled.
+//   YYᵀ freezes that component of X at U. So the penalties adapt: α_k = c·tr(Y_k Y_kᵀ)/q,
+//   β_k = c·tr(X_{k+1}ᵀ X_{k+1})/q, a fraction c (penalty_scale = 0.1) of the mean eigenvalue of
+//   the Gram matrix each is added to (docs/methods/nmf-completion.md measures both). Changing
+//   the penalty between iterations is the usual varying-penalty ADMM (Boyd et al. 2011, Sec.
+//   3.4.1); the multipliers are kept unscaled.
 // - Rank: q is lowered until |Ω| ≥ min_oversampling · q(m + n − q), the degrees of freedom of a
 //   rank-q matrix (Xu et al. assume q is an upper bound of M's rank; with too few entries per row
 //   the spare components fit Ω and extrapolate noise everywhere else). Never below 1.
