@@ -30,10 +30,11 @@
 //     (common/matrix/nmf_completion.h), once per RGB channel on the same Ω (the paper does not
 //     say; a channel has the rank of the geometry, stacking channels would add the colours to
 //     it). The solver lowers the rank until |Ω| ≥ 2 q(m + n − q) (its min_oversampling): with
-//     ~10-25 observed entries per row, q = 16 fits Ω and extrapolates noise elsewhere (docs/methods/sparse-completion.md). When every entry is
-//     observed the solver returns M itself (no factorisation), so with rate=1, merge_error=0 and
-//     global_cut ≥ number of lights (every column a single light, scale 1) the result equals
-//     brute force up to the order of the double sums.
+//     ~10-25 observed entries per row, q = 16 fits Ω and extrapolates noise elsewhere
+//     (docs/methods/sparse-completion.md). When every entry is observed the solver returns M
+//     itself (no factorisation), so with rate=1, merge_error=0 and global_cut ≥ number of lights
+//     (every column a single light, scale 1) the result equals brute force up to the order of
+//     the double sums.
 //  6. Row sums = X·(Y·1) per channel (Sec. 3, step 5), without forming M.
 //
 // Parameters (--param): global_cut (850), merge_error (0.005), rate (0.1), rank (16),
