@@ -6,19 +6,11 @@
 
 #include "common/bench/bench_report.h"
 #include "common/bench/reference.h"
+#include "common/gather/gather.h"
 #include "common/util/error.h"
 
 namespace lightfarm {
 
-namespace {
-
-std::string G(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%g", v);
-  return buf;
-}
-
-}  // namespace
 
 std::filesystem::path CostModelPath(const std::string& cache_dir, const std::string& scene) {
   return std::filesystem::path(cache_dir) / "models" / (SceneFilesHash(scene) + ".csv");
@@ -33,13 +25,9 @@ TargetChoice DefaultForTargetError(const std::string& method, double target) {
   TargetChoice c;
   c.method = method;
   c.source = "documented default (no bench results for this scene)";
-  if (method == "lightcuts") {
-    c.params = {"error=" + G(std::min(target, 1.0))};
-  } else if (method == "mrcs") {
-    const long columns = std::clamp(std::lround(12.0 / target), 50L, 5000L);
-    c.params = {"rows=" + std::to_string(columns / 2), "columns=" + std::to_string(columns)};
-  } else if (method == "sparse-completion") {
-    c.params = {"rate=" + G(std::clamp(0.002 / target, 0.01, 0.5))};
+  const GatherMethodInfo* m = FindGatherMethod(method);
+  if (m && m->params_for_target) {
+    c.params = m->params_for_target(target);
   } else {
     throw OptionError("--target-error: no default for method \"" + method +
                       "\"; run `lightfarm bench` on the scene first (or pass --bench-dir)");

@@ -1,5 +1,5 @@
-// What `lightfarm bench` sweeps: for each gather method, its quality knob over >= 5 settings.
-// A registered method takes part in a bench as soon as it has a line in the table (sweeps.cpp).
+// What `lightfarm bench` sweeps: for each gather method, its quality knob over >= 5 settings,
+// as the method declares it in its file (GatherMethodInfo::sweep).
 #pragma once
 
 #include <string>
@@ -17,8 +17,7 @@ struct MethodSweep {
   std::vector<SweepSetting> settings;  // cheapest first
 };
 
-// The sweeps of `methods` (all registered methods with a sweep entry when empty), in table
-// order. Throws OptionError for a name that is not registered or has no sweep entry.
+// The sweeps of `methods` (every method with a sweep when empty), in registry order. Throws OptionError for a name that is not registered or has no sweep entry.
 std::vector<MethodSweep> SweepsFor(const std::vector<std::string>& methods);
 // The same with `settings` ("a=1,b=2;a=2,b=4", cheapest first) in place of the table's line;
 // it needs exactly one method. Throws OptionError otherwise or for an empty or malformed list

@@ -4,14 +4,15 @@
 // registry knows, or (no candidates) the cheapest of its measured methods within the target. A
 // scene with media chooses between `adaptive-completion` (Huo 2016's media method, the one
 // measured on media scenes) and `brute`, exact: adaptive-completion when its worst measured
-// rel_l2 there (kMeasuredMedia, docs/media-methods.md) is within kSafety · target, so the default
+// rel_l2 there (GatherMethodInfo::auto_media_rel_l2, docs/media-methods.md) is within kSafety · target, so the default
 // 2% target keeps brute force. The accuracy row picks, among the measured surface methods the
 // registry knows, the one with the fewest shadow rays per pixel whose measured rel_l2 is at most
 // kSafety · target (the measurements are one scene: keep a margin); without --param
 // target_error the target is kDefaultTarget (2%).
 //
-// Measurements (kMeasured): cornell-box (the shared scenes' cornell-box, diffuse, area light +
-// indirect VPLs), 64×64, 1 spp, seed 0, each method at its default parameters against brute
+// Surface measurements (GatherMethodInfo::auto_surface_*, in each method's file): cornell-box
+// (the shared scenes' cornell-box, diffuse, area light + indirect VPLs), 64×64, 1 spp, seed 0,
+// each method at its default parameters against brute
 // force with the same lights, `lightfarm compare`; one run each on a loaded 2-core machine (rays
 // are deterministic, times are not, so the cost is shadow rays per pixel). rel_l2 is the worst
 // over 5000 and 20000 lights, rays per pixel are at 20000 lights (brute: 0.65 · lights).
@@ -41,41 +42,35 @@ constexpr double kSafety = 0.5;          // a method qualifies when measured rel
 constexpr size_t kBruteMaxLights = 300;
 
 struct MeasuredMethod {
-  const char* method;
+  std::string method;
   double rel_l2;           // worst measured relative L2 error against brute force
   double rays_per_pixel;   // shadow rays per pixel at 20000 lights
 };
 
-// cornell-box 64×64 (see the top of this file); brute force is exact by definition.
-// rel_l2 at 5000 / 20000 lights: sparse-completion 0.041 / 0.040, lightslice 0.031 / 0.039,
-// lightcuts 0.0027 / 0.0021, mrcs 0.013 / 0.016; brute force casts 13107 rays per pixel at 20000.
-const std::vector<MeasuredMethod> kMeasured = {
-    {"sparse-completion", 0.041, 23.7},
-    {"lightslice", 0.039, 217.8},
-    {"lightcuts", 0.0027, 173.1},
-    {"mrcs", 0.016, 1352.4},
-};
-
-// docs/media-methods.md (`scripts/report-accuracy.sh --media`, 256², 1000–16000 lights):
-// adaptive-completion `rho=0.1,sigma=0.01` (a looser σ than its default 0.005) against brute
-// force, worst rel_l2 over volumetric-caustic (0.015–0.021) and the cloud (0.052–0.054); its
-// rays per pixel are not compared (brute force is the only alternative).
-const std::vector<MeasuredMethod> kMeasuredMedia = {
-    {"adaptive-completion", 0.054, 0},
-};
+// What the methods of this build measured (GatherMethodInfo, in each method's file): on
+// cornell-box (the protocol above; brute force, exact by definition, casts 13107 rays per pixel
+// at 20000 lights) and in media.
+std::vector<MeasuredMethod> Measured(bool media) {
+  std::vector<MeasuredMethod> out;
+  for (const GatherMethodInfo& m : GatherMethods()) {
+    const double rel_l2 = media ? m.auto_media_rel_l2 : m.auto_surface_rel_l2;
+    if (rel_l2 >= 0) out.push_back({m.name, rel_l2, media ? 0.0 : m.auto_surface_rays_per_pixel});
+  }
+  return out;
+}
 
 struct Rule {
   const char* name;
   std::function<bool(const Effects&, size_t lights)> applies;
   std::vector<std::string> candidates;  // first registered wins; empty: the accuracy choice
-  const std::vector<MeasuredMethod>* measured = nullptr;  // for the accuracy choice
+  bool media_measurements = false;  // the accuracy choice among Measured(media_measurements)
 };
 
 const std::vector<Rule>& Rules() {
   static const std::vector<Rule> rules = {
-      {"media", [](const Effects& e, size_t) { return e.media; }, {}, &kMeasuredMedia},
+      {"media", [](const Effects& e, size_t) { return e.media; }, {}, true},
       {"few lights", [](const Effects&, size_t n) { return n <= kBruteMaxLights; }, {"brute"}},
-      {"accuracy", [](const Effects&, size_t) { return true; }, {}, &kMeasured},
+      {"accuracy", [](const Effects&, size_t) { return true; }, {}, false},
   };
   return rules;
 }
@@ -103,8 +98,9 @@ AutoMethodChoice ResolveAutoMethod(const Effects& effects, size_t lights, const 
       if (Registered(c)) return {c, rule.name};
     if (!rule.candidates.empty()) continue;
     // Accuracy: the cheapest measured method within the target (with the margin), else brute.
+    const std::vector<MeasuredMethod> measured = Measured(rule.media_measurements);
     const MeasuredMethod* best = nullptr;
-    for (const MeasuredMethod& m : *rule.measured)
+    for (const MeasuredMethod& m : measured)
       if (Registered(m.method) && m.rel_l2 <= kSafety * target &&
           (!best || m.rays_per_pixel < best->rays_per_pixel))
         best = &m;

@@ -38,4 +38,12 @@ std::unique_ptr<GatherMethod> CreateBruteForceGather(const OptionMap&) {
   return std::make_unique<BruteForceGather>();
 }
 
+GatherMethodInfo BruteForceMethod() {
+  GatherMethodInfo m;
+  m.name = "brute";
+  m.create = CreateBruteForceGather;
+  // Not swept: it is every bench's reference, measured once per light set.
+  return m;
+}
+
 }  // namespace lightfarm

@@ -10,6 +10,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <map>
 #include <memory>
 #include <string>
@@ -87,6 +88,30 @@ class GatherMethod {
 // compensation, the caustics) added to its sum (rows in parallel, summed in row order).
 TaskOutput RunGatherTask(const GatherMethod& method, const GatherContext& ctx, const SubMatrixTask& task,
                          const StageArtifact& previous);
+
+// What a method declares about itself besides its algorithm, in its own file, next to it
+// (registry.cpp lists the methods): how to create it, how `lightfarm bench` sweeps it, its
+// documented parameters for a target error, and what `auto` measured of it (auto_method.cpp
+// states how those measurements are taken and used).
+struct GatherMethodInfo {
+  std::string name;
+  std::function<std::unique_ptr<GatherMethod>(const OptionMap&)> create;
+  // The bench's settings: ';'-separated --param lists, cheapest first, >= 5; "" = not swept.
+  std::string sweep;
+  // --target-error without bench results for the scene: the documented parameters for a
+  // relative error; unset = no such default.
+  std::function<std::vector<std::string>(double target)> params_for_target;
+  // `auto`'s measurements against brute force with the same lights (negative: not measured):
+  // worst rel_l2 on cornell-box and shadow rays per pixel there, and worst rel_l2 in media.
+  double auto_surface_rel_l2 = -1;
+  double auto_surface_rays_per_pixel = 0;
+  double auto_media_rel_l2 = -1;
+};
+
+// Every method of this build, in registry order.
+const std::vector<GatherMethodInfo>& GatherMethods();
+// nullptr for a name no method has.
+const GatherMethodInfo* FindGatherMethod(const std::string& name);
 
 // Creates a method by name, reading its parameters from `params` (marking them used).
 // Throws OptionError for an unknown method or an invalid parameter value.

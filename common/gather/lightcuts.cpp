@@ -46,6 +46,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <sstream>
 #include <limits>
 #include <memory>
 #include <mutex>
@@ -650,6 +651,24 @@ std::unique_ptr<GatherMethod> CreateLightcutsGather(const OptionMap& params) {
   const long long unlimited = std::numeric_limits<int32_t>::max();
   size_t max_cut = size_t(params.GetInt("max_cut", error > 0 ? 1000 : unlimited, 1, unlimited));
   return std::make_unique<LightcutsGather>(error, max_cut);
+}
+
+GatherMethodInfo LightcutsMethod() {
+  GatherMethodInfo m;
+  m.name = "lightcuts";
+  m.create = CreateLightcutsGather;
+  // Walter 2005: the per-receiver relative error bound (2% in the paper).
+  m.sweep = "error=0.2;error=0.1;error=0.05;error=0.02;error=0.01;error=0.005";
+  // The bound is the target itself (at most 1).
+  m.params_for_target = [](double target) {
+    std::ostringstream s;
+    s << std::min(target, 1.0);
+    return std::vector<std::string>{"error=" + s.str()};
+  };
+  // auto: rel_l2 0.0027 / 0.0021 at 5000 / 20000 lights (auto_method.cpp has the protocol).
+  m.auto_surface_rel_l2 = 0.0027;
+  m.auto_surface_rays_per_pixel = 173.1;
+  return m;
 }
 
 }  // namespace lightfarm

@@ -1,18 +1,17 @@
-// Factories of the gather methods; each is defined in its own file in this folder.
+// The gather methods' declarations (GatherMethodInfo); each is defined in its own file in this
+// folder, next to its algorithm.
 #pragma once
-
-#include <memory>
 
 #include "common/gather/gather.h"
 
 namespace lightfarm {
 
-std::unique_ptr<GatherMethod> CreateBruteForceGather(const OptionMap& params);
-std::unique_ptr<GatherMethod> CreateMrcsGather(const OptionMap& params);
-std::unique_ptr<GatherMethod> CreateLightcutsGather(const OptionMap& params);
-std::unique_ptr<GatherMethod> CreateSparseCompletionGather(const OptionMap& params);
-std::unique_ptr<GatherMethod> CreateAdaptiveCompletionGather(const OptionMap& params);
-std::unique_ptr<GatherMethod> CreateLightSliceGather(const OptionMap& params);
-std::unique_ptr<GatherMethod> CreatePathGather(const OptionMap& params);
+GatherMethodInfo BruteForceMethod();
+GatherMethodInfo MrcsMethod();
+GatherMethodInfo LightcutsMethod();
+GatherMethodInfo SparseCompletionMethod();
+GatherMethodInfo LightSliceMethod();
+GatherMethodInfo AdaptiveCompletionMethod();
+GatherMethodInfo PathMethod();
 
 }  // namespace lightfarm

@@ -901,4 +901,22 @@ std::unique_ptr<GatherMethod> CreateMrcsGather(const OptionMap& params) {
   return std::make_unique<MatrixRowColumnSampling>(s);
 }
 
+GatherMethodInfo MrcsMethod() {
+  GatherMethodInfo m;
+  m.name = "mrcs";
+  m.create = CreateMrcsGather;
+  // Hašan 2007 uses rows:columns of 1:2 and 1:3 (Fig. 6).
+  m.sweep = "rows=25,columns=50;rows=50,columns=100;rows=50,columns=150;rows=100,columns=200;"
+            "rows=100,columns=300;rows=200,columns=400;rows=300,columns=600;rows=300,columns=900";
+  // Columns ∝ 1/target (12/target, within 50..5000), rows half of them.
+  m.params_for_target = [](double target) {
+    const long columns = std::clamp(std::lround(12.0 / target), 50L, 5000L);
+    return std::vector<std::string>{"rows=" + std::to_string(columns / 2), "columns=" + std::to_string(columns)};
+  };
+  // auto: rel_l2 0.013 / 0.016 at 5000 / 20000 lights (auto_method.cpp has the protocol).
+  m.auto_surface_rel_l2 = 0.016;
+  m.auto_surface_rays_per_pixel = 1352.4;
+  return m;
+}
+
 }  // namespace lightfarm

@@ -98,4 +98,14 @@ std::unique_ptr<GatherMethod> CreatePathGather(const OptionMap& params) {
   return std::make_unique<PathGather>(strategy);
 }
 
+GatherMethodInfo PathMethod() {
+  GatherMethodInfo m;
+  m.name = "path";
+  m.create = CreatePathGather;
+  // What a user would run instead. Its knob is the samples per pixel (a sweep's spp=N sets
+  // them; bench_run.cpp); it uses no virtual lights.
+  m.sweep = "spp=4;spp=16;spp=64;spp=256;spp=1024";
+  return m;
+}
+
 }  // namespace lightfarm

@@ -1,40 +1,35 @@
-#include <functional>
+#include <algorithm>
 
 #include "common/gather/methods.h"
 
 namespace lightfarm {
 
-namespace {
-
-using Factory = std::function<std::unique_ptr<GatherMethod>(const OptionMap&)>;
-
 // Explicit list (not static self-registration, which the linker may drop from a static library).
-const std::vector<std::pair<std::string, Factory>>& Registry() {
-  static const std::vector<std::pair<std::string, Factory>> registry = {
-      {"brute", CreateBruteForceGather},
-      {"mrcs", CreateMrcsGather},
-      {"lightcuts", CreateLightcutsGather},
-      {"sparse-completion", CreateSparseCompletionGather},
-      {"adaptive-completion", CreateAdaptiveCompletionGather},
-      {"lightslice", CreateLightSliceGather},
-      {"path", CreatePathGather},
+// The order is the bench's and the reports' order of methods.
+const std::vector<GatherMethodInfo>& GatherMethods() {
+  static const std::vector<GatherMethodInfo> methods = {
+      BruteForceMethod(), MrcsMethod(),       LightcutsMethod(),         SparseCompletionMethod(),
+      LightSliceMethod(), AdaptiveCompletionMethod(), PathMethod(),
   };
-  return registry;
+  return methods;
 }
 
-}  // namespace
+const GatherMethodInfo* FindGatherMethod(const std::string& name) {
+  const std::vector<GatherMethodInfo>& all = GatherMethods();
+  auto it = std::find_if(all.begin(), all.end(), [&](const GatherMethodInfo& m) { return m.name == name; });
+  return it == all.end() ? nullptr : &*it;
+}
 
 std::unique_ptr<GatherMethod> CreateGatherMethod(const std::string& name, const OptionMap& params) {
-  for (const auto& [n, factory] : Registry())
-    if (n == name) return factory(params);
+  if (const GatherMethodInfo* m = FindGatherMethod(name)) return m->create(params);
   std::string known;
-  for (const auto& [n, f] : Registry()) known += (known.empty() ? "" : ", ") + n;
+  for (const GatherMethodInfo& m : GatherMethods()) known += (known.empty() ? "" : ", ") + m.name;
   throw OptionError("unknown method \"" + name + "\" (available: " + known + ")");
 }
 
 std::vector<std::string> GatherMethodNames() {
   std::vector<std::string> names;
-  for (const auto& [n, f] : Registry()) names.push_back(n);
+  for (const GatherMethodInfo& m : GatherMethods()) names.push_back(m.name);
   return names;
 }
 
