@@ -12,90 +12,14 @@
 
 #include "common/scene/bsdf.h"
 #include "common/scene/camera.h"
+#include "common/scene/lights.h"
 #include "common/scene/medium.h"
 #include "common/scene/scene_description.h"
+#include "common/scene/shapes.h"
 #include "common/util/math.h"
 #include "common/util/rng.h"
 
 namespace lightfarm {
-
-// Where a ray hit a surface, in world space.
-struct SurfaceHit {
-  Vec3 p;
-  Vec3 ng;  // geometric normal, unit, oriented as the shape's (reverse orientation applied)
-  Vec3 ns;  // shading normal, unit, in the same hemisphere as ng
-  Vec2 uv;
-  float t = 0;
-  uint32_t shape = 0;  // index into Scene::shapes()
-  uint32_t prim = 0;
-};
-
-enum class ShapeKind : uint8_t { kTriangleMesh, kSphere };
-
-// A shape after instancing and transformation, in world space.
-struct Shape {
-  ShapeKind kind = ShapeKind::kTriangleMesh;
-  int material = 0;      // index into Scene::materials()
-  int area_emitter = -1;  // index into Scene::area_emitters(), -1 if not emissive
-  bool flip_normals = false;  // ReverseOrientation xor handedness swap
-  std::string name;       // `Shape "plymesh"` at file:line, for messages
-  // Triangle mesh data (world space).
-  std::vector<Vec3> positions, normals;
-  std::vector<Vec2> uvs;
-  std::vector<uint32_t> indices;
-  // Sphere data (world space).
-  Vec3 center;
-  float radius = 0;
-  // MediumInterface: indices into Scene::media(), -1 for vacuum. Only a shape whose two media
-  // differ changes the medium a ray is in (pbrt-v4: other shapes keep the ray's medium).
-  int inside_medium = -1, outside_medium = -1;
-  bool medium_transition = false;
-
-  size_t PrimitiveCount() const { return kind == ShapeKind::kSphere ? 1 : indices.size() / 3; }
-};
-
-// A diffuse area light: emission L on the front side (both sides if two_sided) of a shape.
-struct AreaEmitter {
-  uint32_t shape = 0;
-  RGB L;  // radiance, already multiplied by "scale"
-  bool two_sided = false;
-  float area = 0;                    // total surface area
-  std::vector<float> triangle_cdf;   // cumulative triangle areas (meshes), normalised
-  // Emitted power Φ = π · A · L (· 2 when two-sided).
-  RGB Power() const { return L * (kPi * area * (two_sided ? 2.f : 1.f)); }
-};
-
-// Point, spot, distant and infinite lights as the file gives them.
-struct PointEmitter {
-  Vec3 position;
-  RGB intensity;                // I · scale
-  bool spot = false;
-  int medium = -1;              // the medium the light sits in (index into Scene::media())
-  Vec3 axis{0, 0, 1};           // spot direction (world)
-  float cos_falloff_start = 1, cos_falloff_end = -1;  // spot cone (smoothstep between)
-  // pbrt-v4 spot falloff: smoothstep(cosFalloffEnd, cosFalloffStart, cos θ).
-  float Falloff(Vec3 w_from_light) const;
-};
-struct DistantEmitter {
-  int medium = -1;  // the medium its particles start in (the light's MediumInterface)
-  Vec3 direction;  // direction the light travels (from "from" to "to")
-  RGB L;           // irradiance scale: radiance arriving along -direction integrated = L·scale
-};
-struct InfiniteEmitter {
-  int medium = -1;  // the medium its particles start in (the light's MediumInterface)
-  RGB L{0.f};      // uniform radiance (when no image)
-  Transform world_from_light, light_from_world;
-  int width = 0, height = 0;  // equal-area octahedral image (pbrt-v4), empty for uniform
-  std::vector<RGB> image;
-  std::vector<float> pixel_cdf;  // luminance-proportional sampling over pixels
-  float luminance_sum = 0;
-  RGB scale{1.f};
-  RGB Le(Vec3 w_world) const;  // radiance arriving from direction w (w points away from scene)
-  // Samples a direction (pointing away from the scene) ∝ luminance; returns pdf (solid angle).
-  Vec3 SampleDirection(Vec2 u, float* pdf) const;
-  float Pdf(Vec3 w_world) const;
-  RGB AverageRadiance() const;
-};
 
 // The rendering hints a scene gives (Integrator, Sampler, Film, PixelFilter), interpreted.
 struct RenderHints {
