@@ -247,6 +247,12 @@ std::shared_ptr<Worker::JobRuntime> Worker::Runtime(const v1::JobContext& job) {
   return rt;
 }
 
+struct Worker::LeasedTask {
+  std::shared_ptr<JobRuntime> rt;
+  SubMatrixTask task;
+  StageArtifact artifact;
+};
+
 bool Worker::RunOneTask() {
   v1::LeaseTaskRequest req;
   req.set_worker_id(worker_id_);
@@ -259,46 +265,57 @@ bool Worker::RunOneTask() {
   if (!lease.has_task()) return false;
   if (lease.lease_timeout_ms() > 0) lease_timeout_ms_ = lease.lease_timeout_ms();
 
-  auto fail = [&](const std::string& reason, bool hand_back) {
-    v1::FailTaskRequest f;
-    f.set_worker_id(worker_id_);
-    f.set_lease_id(lease.lease_id());
-    f.set_reason(reason);
-    f.set_hand_back(hand_back);
-    v1::FailTaskResponse resp;
-    grpc::ClientContext ctx;
-    Prepare(&ctx, options_.rpc_timeout_s);
-    grpc::Status st = stub_->FailTask(&ctx, f, &resp);
-    if (!st.ok()) spdlog::warn("could not report the failure: {}", st.error_message());
-  };
-
-  // Run the task on its own thread; heartbeat meanwhile so the lease stays ours.
-  std::shared_ptr<JobRuntime> rt;
-  SubMatrixTask task;
-  StageArtifact artifact;
+  LeasedTask leased;
   try {
-    rt = Runtime(lease.job());
-    task = DeserializeTask(ByteView(reinterpret_cast<const uint8_t*>(lease.task().data()), lease.task().size()));
-    // Matrix methods' rows index the lighting matrix, film methods' the pixels.
-    const size_t row_limit = FinalRows(rt->plan);
-    for (uint32_t r : task.rows)
-      if (r >= row_limit) throw std::runtime_error("task row " + std::to_string(r) + " out of range");
-    if (!lease.artifact_sha256().empty()) artifact = ReadBytes(FetchBlob(lease.artifact_sha256()));
+    leased = PrepareTask(lease);
   } catch (const RpcError& e) {
-    if (Transient(e.code())) throw;
-    fail(std::string("cannot prepare the task: ") + e.what(), false);
+    if (Transient(e.code())) throw;  // the coordinator is away: Run retries, the lease expires
+    ReportFailure(lease.lease_id(), std::string("cannot prepare the task: ") + e.what(), false);
     return true;
   } catch (const std::exception& e) {
-    fail(std::string("cannot prepare the task: ") + e.what(), false);
+    ReportFailure(lease.lease_id(), std::string("cannot prepare the task: ") + e.what(), false);
     return true;
   }
+  TaskOutput output;
+  try {
+    switch (RunUnderLease(leased, lease.lease_id(), &output)) {
+      case Ending::kDone: break;
+      case Ending::kHandedBack: ReportFailure(lease.lease_id(), "worker shutting down", true); return true;
+      case Ending::kLeaseLost:
+        spdlog::info("lease {} is no longer ours (job cancelled or task re-leased); task stopped",
+                     lease.lease_id());
+        ++tasks_cancelled_;
+        return true;
+    }
+  } catch (const std::exception& e) {
+    ReportFailure(lease.lease_id(), std::string("task failed: ") + e.what(), false);
+    return true;
+  }
+  DeliverResult(lease.lease_id(), output);
+  return true;
+}
+
+Worker::LeasedTask Worker::PrepareTask(const v1::LeaseTaskResponse& lease) {
+  LeasedTask leased;
+  leased.rt = Runtime(lease.job());
+  leased.task = DeserializeTask(ByteView(reinterpret_cast<const uint8_t*>(lease.task().data()), lease.task().size()));
+  // Matrix methods' rows index the lighting matrix, film methods' the pixels.
+  const size_t row_limit = FinalRows(leased.rt->plan);
+  for (uint32_t r : leased.task.rows)
+    if (r >= row_limit) throw std::runtime_error("task row " + std::to_string(r) + " out of range");
+  if (!lease.artifact_sha256().empty()) leased.artifact = ReadBytes(FetchBlob(lease.artifact_sha256()));
+  return leased;
+}
+
+Worker::Ending Worker::RunUnderLease(const LeasedTask& leased, const std::string& lease_id, TaskOutput* output) {
   // The task runs inside a task_group: the oneTBB loops it starts bind to the group's context, so
   // cancelling the group (job cancelled, lease lost, shutdown) stops them at their next chunk and
   // the worker is free again in a fraction of the task's time. A cancelled result is dropped.
+  const Plan& plan = leased.rt->plan;
   tbb::task_group group;
   auto future = std::async(std::launch::async, [&] {
     TaskOutput out;
-    group.run_and_wait([&] { out = RunGatherTask(*rt->plan.method, rt->plan.context(), task, artifact); });
+    group.run_and_wait([&] { out = RunGatherTask(*plan.method, plan.context(), leased.task, leased.artifact); });
     return out;
   });
   const auto beat = std::chrono::milliseconds(std::max<uint32_t>(20, lease_timeout_ms_ / 4));
@@ -307,7 +324,7 @@ bool Worker::RunOneTask() {
     if (hand_back_) break;
     v1::HeartbeatRequest hb;
     hb.set_worker_id(worker_id_);
-    hb.set_lease_id(lease.lease_id());
+    hb.set_lease_id(lease_id);
     v1::HeartbeatResponse resp;
     grpc::ClientContext ctx;
     Prepare(&ctx, std::min(options_.rpc_timeout_s, lease_timeout_ms_ / 2000.0));
@@ -324,25 +341,15 @@ bool Worker::RunOneTask() {
     } catch (const std::exception&) {
       // a cancelled task may fail on its partial data; nothing of it is kept
     }
-    if (hand_back_) {
-      fail("worker shutting down", true);
-    } else {
-      spdlog::info("lease {} is no longer ours (job cancelled or task re-leased); task stopped",
-                   lease.lease_id());
-      ++tasks_cancelled_;
-    }
-    return true;
+    return hand_back_ ? Ending::kHandedBack : Ending::kLeaseLost;
   }
-  TaskOutput output;
-  try {
-    output = future.get();
-  } catch (const std::exception& e) {
-    fail(std::string("task failed: ") + e.what(), false);
-    return true;
-  }
+  *output = future.get();  // rethrows what the task threw
+  return Ending::kDone;
+}
 
-  // Stream the result back; retry while the coordinator is away (it accepts a completion for a
-  // task it still needs, even after a restart).
+void Worker::DeliverResult(const std::string& lease_id, const TaskOutput& output) {
+  // Retried while the coordinator is away: it accepts a completion for a task it still needs,
+  // even after a restart.
   const Bytes bytes = SerializeTaskOutput(output);
   double backoff = 0.1;
   const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(120);
@@ -353,20 +360,33 @@ bool Worker::RunOneTask() {
     auto writer = stub_->CompleteTask(&ctx, &resp);
     const grpc::Status st = WriteChunked(*writer, bytes.data(), bytes.size(), [&](v1::TaskResultChunk& chunk) {
       chunk.set_worker_id(worker_id_);
-      chunk.set_lease_id(lease.lease_id());
+      chunk.set_lease_id(lease_id);
       chunk.set_total_size(bytes.size());
     });
     if (st.ok()) {
       ++tasks_done_;
-      return true;
+      return;
     }
     if (!Transient(st.error_code()) || std::chrono::steady_clock::now() > give_up || hand_back_) {
-      spdlog::warn("result of lease {} not delivered: {}", lease.lease_id(), st.error_message());
-      return true;
+      spdlog::warn("result of lease {} not delivered: {}", lease_id, st.error_message());
+      return;
     }
     SleepUnlessStopping(backoff);
     backoff = std::min(backoff * 2, 2.0);
   }
+}
+
+void Worker::ReportFailure(const std::string& lease_id, const std::string& reason, bool hand_back) {
+  v1::FailTaskRequest f;
+  f.set_worker_id(worker_id_);
+  f.set_lease_id(lease_id);
+  f.set_reason(reason);
+  f.set_hand_back(hand_back);
+  v1::FailTaskResponse resp;
+  grpc::ClientContext ctx;
+  Prepare(&ctx, options_.rpc_timeout_s);
+  grpc::Status st = stub_->FailTask(&ctx, f, &resp);
+  if (!st.ok()) spdlog::warn("could not report the failure: {}", st.error_message());
 }
 
 }  // namespace lightfarm

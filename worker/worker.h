@@ -73,8 +73,18 @@ class Worker {
 
  private:
   struct JobRuntime;
+  struct LeasedTask;
+  enum class Ending { kDone, kHandedBack, kLeaseLost };
   void Register();
-  bool RunOneTask();  // false when there was nothing to do
+  // One task: lease, prepare, run under heartbeats, deliver. False when there was nothing to do.
+  bool RunOneTask();
+  // The task of a lease with what it needs (plan, spec, the previous stage's artifact); throws.
+  LeasedTask PrepareTask(const v1::LeaseTaskResponse& lease);
+  // Runs it while heartbeating the lease; stops it when the lease is lost or on hand-back.
+  Ending RunUnderLease(const LeasedTask& leased, const std::string& lease_id, TaskOutput* output);
+  // Streams the result back, retrying while the coordinator is away.
+  void DeliverResult(const std::string& lease_id, const TaskOutput& output);
+  void ReportFailure(const std::string& lease_id, const std::string& reason, bool hand_back);
   std::shared_ptr<JobRuntime> Runtime(const v1::JobContext& ctx);
   std::string FetchBlob(const std::string& sha);  // path of the cached blob
   void Prepare(grpc::ClientContext* ctx, double timeout_s) const;
