@@ -2,7 +2,7 @@
 // quality knob (the path tracer's samples among them) against a cached brute-force reference
 // with the same lights and against the truth (a converged image: truth.h), and writes
 // results.csv (a row per run, flushed as it ends), plots, heatmaps, a contact sheet and
-// report.md (common/bench/). Ctrl-C stops after the current run and still writes the report.
+// report.md (common/evaluation/). Ctrl-C stops after the current run and still writes the report.
 #include <tbb/global_control.h>
 
 #include <atomic>
@@ -18,9 +18,9 @@
 #include "cli/progress.h"
 #include "cli/render_options.h"
 #include "cli/target_error.h"
-#include "common/bench/cost_model.h"
-#include "common/bench/bench_report.h"
-#include "common/bench/bench_run.h"
+#include "common/evaluation/cost_model.h"
+#include "common/evaluation/bench_report.h"
+#include "common/evaluation/bench_run.h"
 #include "common/util/error.h"
 
 namespace lightfarm::cli {

@@ -4,7 +4,7 @@
 #include <cstdlib>
 #include <filesystem>
 
-#include "common/bench/reference.h"
+#include "common/evaluation/reference.h"
 #include "common/farm/program.h"
 #include "common/gather/auto_method.h"
 #include "common/image/image_io.h"

@@ -1,5 +1,5 @@
 // `--target-error E` (render, submit): parameters from the scene's bench cost model
-// (common/bench/cost_model.h), a prediction printed before the render, and the estimated and
+// (common/evaluation/cost_model.h), a prediction printed before the render, and the estimated and
 // (when a cached brute-force reference exists) measured error after it.
 #pragma once
 
@@ -7,7 +7,7 @@
 #include <string>
 #include <vector>
 
-#include "common/bench/cost_model.h"
+#include "common/evaluation/cost_model.h"
 #include "common/image/image.h"
 
 namespace lightfarm::cli {

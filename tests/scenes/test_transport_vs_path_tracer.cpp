@@ -1,5 +1,5 @@
 // lightfarm's many-light transport against an independent volumetric path tracer
-// (bench/volpath/path_tracer.h: pbrt-v4 volpath depth counting, next-event estimation, delta
+// (tests/oracle/volpath/path_tracer.h: pbrt-v4 volpath depth counting, next-event estimation, delta
 // tracking; it shares only the parser, the Embree scene, the BSDFs and the camera). A fog-filled
 // box seen through an interface wall, lit by a small area light on its ceiling (just out of view:
 // one camera sample that hits it would outweigh a region), brute force with
@@ -14,7 +14,7 @@
 #include <cmath>
 #include <string>
 
-#include "bench/volpath/path_tracer.h"
+#include "tests/oracle/volpath/path_tracer.h"
 #include "common/farm/render_job.h"
 #include "common/scene/scene_description.h"
 #include "tests/common/test_util.h"

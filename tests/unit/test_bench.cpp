@@ -9,11 +9,11 @@
 #include <fstream>
 #include <sstream>
 
-#include "common/bench/bench_report.h"
-#include "common/bench/bench_run.h"
-#include "common/bench/cost_model.h"
-#include "common/bench/reference.h"
-#include "common/bench/truth.h"
+#include "common/evaluation/bench_report.h"
+#include "common/evaluation/bench_run.h"
+#include "common/evaluation/cost_model.h"
+#include "common/evaluation/reference.h"
+#include "common/evaluation/truth.h"
 #include "common/image/image_io.h"
 #include "common/image/metrics.h"
 #include "tests/common/test_util.h"

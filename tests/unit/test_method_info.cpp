@@ -6,7 +6,7 @@
 #include <set>
 #include <string>
 
-#include "common/bench/sweeps.h"
+#include "common/evaluation/sweeps.h"
 #include "common/gather/gather.h"
 #include "common/util/error.h"
 

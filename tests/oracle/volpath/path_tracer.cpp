@@ -1,4 +1,4 @@
-#include "bench/volpath/path_tracer.h"
+#include "tests/oracle/volpath/path_tracer.h"
 
 #include <tbb/parallel_for.h>
 

@@ -1,4 +1,4 @@
-#include "common/bench/bench_run.h"
+#include "common/evaluation/bench_run.h"
 
 #include <spdlog/spdlog.h>
 #include <sys/resource.h>

@@ -1,4 +1,4 @@
-#include "common/bench/truth.h"
+#include "common/evaluation/truth.h"
 
 #include <spdlog/spdlog.h>
 
@@ -9,7 +9,7 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 
-#include "common/bench/reference.h"
+#include "common/evaluation/reference.h"
 #include "common/image/image_io.h"
 #include "common/image/metrics.h"
 #include "common/util/error.h"

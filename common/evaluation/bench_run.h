@@ -9,9 +9,9 @@
 #include <string>
 #include <vector>
 
-#include "common/bench/reference.h"
-#include "common/bench/sweeps.h"
-#include "common/bench/truth.h"
+#include "common/evaluation/reference.h"
+#include "common/evaluation/sweeps.h"
+#include "common/evaluation/truth.h"
 #include "common/farm/render_job.h"
 
 namespace lightfarm {

@@ -1,4 +1,4 @@
-#include "common/bench/reference.h"
+#include "common/evaluation/reference.h"
 
 #include <tbb/parallel_for.h>
 

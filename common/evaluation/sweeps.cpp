@@ -1,4 +1,4 @@
-#include "common/bench/sweeps.h"
+#include "common/evaluation/sweeps.h"
 
 #include <algorithm>
 #include <sstream>

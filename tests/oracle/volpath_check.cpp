@@ -1,5 +1,5 @@
 // lightfarm-volpath-check: renders a scene with the independent volumetric path tracer of
-// bench/volpath/path_tracer.h (what it is and what it handles is written there) and prints region
+// tests/oracle/volpath/path_tracer.h (what it is and what it handles is written there) and prints region
 // means with their standard errors, to compare with a lightfarm render of the same scene.
 #include <CLI/CLI.hpp>
 #include <cmath>
@@ -7,7 +7,7 @@
 #include <string>
 #include <vector>
 
-#include "bench/volpath/path_tracer.h"
+#include "tests/oracle/volpath/path_tracer.h"
 #include "common/image/image_io.h"
 #include "common/util/error.h"
 

@@ -1,5 +1,5 @@
 // An independent, deliberately simple unidirectional volumetric path tracer, used ONLY to validate
-// lightfarm's many-light transport (`lightfarm-volpath-check`, bench/volpath_check.cpp, and
+// lightfarm's many-light transport (`lightfarm-volpath-check`, tests/oracle/volpath_check.cpp, and
 // tests/scenes/test_transport_vs_path_tracer.cpp; it is not a gather method and is not installed). It shares lightfarm's scene parser, Embree scene, BSDFs and camera, but
 // none of the transport code (receivers, particle tracing, matrix elements, clamping).
 //

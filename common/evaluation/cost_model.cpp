@@ -1,11 +1,11 @@
-#include "common/bench/cost_model.h"
+#include "common/evaluation/cost_model.h"
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 
-#include "common/bench/bench_report.h"
-#include "common/bench/reference.h"
+#include "common/evaluation/bench_report.h"
+#include "common/evaluation/reference.h"
 #include "common/gather/gather.h"
 #include "common/util/error.h"
 

@@ -1,4 +1,4 @@
-#include "common/bench/bench_report.h"
+#include "common/evaluation/bench_report.h"
 
 #include <spdlog/spdlog.h>
 

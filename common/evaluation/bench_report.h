@@ -7,7 +7,7 @@
 #include <string>
 #include <vector>
 
-#include "common/bench/bench_run.h"
+#include "common/evaluation/bench_run.h"
 
 namespace lightfarm {
 
