@@ -4,7 +4,6 @@
 #include <spdlog/spdlog.h>
 
 #include <CLI/CLI.hpp>
-#include <csignal>
 #include <iostream>
 #include <thread>
 
@@ -12,13 +11,6 @@
 #include "common/farm/program.h"
 #include "common/farm/rpc.h"
 #include "coordinator/services.h"
-
-namespace {
-
-volatile std::sig_atomic_t g_stop = 0;
-void OnSignal(int) { g_stop = 1; }
-
-}  // namespace
 
 int main(int argc, char** argv) {
   lightfarm::SetFloatingPointMode();
@@ -57,26 +49,22 @@ int main(int argc, char** argv) {
   app.add_option("--log-level", log_level, "trace|debug|info|warn|error")->check(lightfarm::LogLevel());
   if (auto exit_code = lightfarm::ParseCommandLine(app, argc, argv, "lightfarm-coordinator")) return *exit_code;
   spdlog::set_level(spdlog::level::from_str(log_level));
-  try {
+  return lightfarm::RunProgram("lightfarm-coordinator", [&] {
     opt.max_blob_bytes = uint64_t(max_blob_mb * 1024.0 * 1024.0);
     server.token = lightfarm::ReadTokenFile(token_file);
     lightfarm::RequireImageIo();  // every job ends in an EXR: fail now, not at the first job's end
     lightfarm::Coordinator coordinator(opt);
     coordinator.Start();
     lightfarm::FarmServer farm(coordinator, server);
-    std::signal(SIGTERM, OnSignal);
-    std::signal(SIGINT, OnSignal);
+    lightfarm::CatchStopSignals();
     // The port line is how scripts learn a picked port (--listen HOST:0).
     std::cout << "listening on port " << farm.port() << std::endl;
     spdlog::info("listening on {} (port {}), state in {}", server.listen, farm.port(), opt.state_dir);
-    while (!g_stop) std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    while (lightfarm::StopSignals() == 0) std::this_thread::sleep_for(std::chrono::milliseconds(100));
     spdlog::info("draining");
     farm.Shutdown(drain_s);
     coordinator.Stop();
     spdlog::info("stopped");
     return 0;
-  } catch (const std::exception& e) {
-    std::cerr << "lightfarm-coordinator: " << e.what() << "\n";
-    return 1;
-  }
+  });
 }

@@ -4,20 +4,12 @@
 #include <tbb/global_control.h>
 
 #include <CLI/CLI.hpp>
-#include <csignal>
 #include <iostream>
 #include <thread>
 
 #include "common/farm/program.h"
 #include "common/farm/rpc.h"
 #include "worker/worker.h"
-
-namespace {
-
-volatile std::sig_atomic_t g_signals = 0;
-void OnSignal(int) { g_signals = g_signals + 1; }
-
-}  // namespace
 
 int main(int argc, char** argv) {
   lightfarm::SetFloatingPointMode();
@@ -48,7 +40,7 @@ int main(int argc, char** argv) {
   if (auto exit_code = lightfarm::ParseCommandLine(app, argc, argv, "lightfarm-worker")) return *exit_code;
   spdlog::set_level(spdlog::level::from_str(log_level));
 
-  try {
+  return lightfarm::RunProgram("lightfarm-worker", [&] {
     options.token = lightfarm::ReadTokenFile(token_file);
     options.threads = threads;
     options.cache_bytes = uint64_t(cache_gb * double(1ull << 30));
@@ -56,15 +48,14 @@ int main(int argc, char** argv) {
     if (threads > 0)
       limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, size_t(threads));
     lightfarm::Worker worker(lightfarm::MakeChannel(channel), options);
-    std::signal(SIGTERM, OnSignal);
-    std::signal(SIGINT, OnSignal);
-    // Signals are turned into Stop() calls by a watcher thread (no work in the handler).
+    lightfarm::CatchStopSignals();
+    // A watcher thread turns signals into Stop() calls: the first drains, the second hands back.
     std::atomic<bool> done{false};
     std::thread watcher([&] {
       int seen = 0;
       while (!done) {
-        if (g_signals > seen) {
-          seen = g_signals;
+        if (lightfarm::StopSignals() > seen) {
+          seen = lightfarm::StopSignals();
           spdlog::info(seen == 1 ? "draining: finishing the current task" : "handing the current task back");
           worker.Stop(seen > 1);
         }
@@ -82,8 +73,5 @@ int main(int argc, char** argv) {
     watcher.join();
     spdlog::info("stopped after {} tasks", worker.tasks_done());
     return rc;
-  } catch (const std::exception& e) {
-    std::cerr << "lightfarm-worker: " << e.what() << "\n";
-    return 1;
-  }
+  });
 }

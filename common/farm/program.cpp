@@ -7,6 +7,7 @@
 #include <xmmintrin.h>
 
 #include <cmath>
+#include <csignal>
 #include <iostream>
 
 #include "common/farm/rpc.h"
@@ -16,6 +17,9 @@ namespace lightfarm {
 namespace {
 
 void GrpcLogToDebug(gpr_log_func_args* args) { spdlog::debug("grpc: {}", args->message); }
+
+volatile std::sig_atomic_t g_stop_signals = 0;
+void CountStopSignal(int) { g_stop_signals = g_stop_signals + 1; }
 
 }  // namespace
 
@@ -41,6 +45,22 @@ std::optional<int> ParseCommandLine(CLI::App& app, int argc, char** argv, const 
   }
   return std::nullopt;
 }
+
+int RunProgram(const std::string& program, const std::function<int()>& body) {
+  try {
+    return body();
+  } catch (const std::exception& e) {
+    std::cerr << program << ": " << e.what() << "\n";
+    return 1;
+  }
+}
+
+void CatchStopSignals() {
+  std::signal(SIGTERM, CountStopSignal);
+  std::signal(SIGINT, CountStopSignal);
+}
+
+int StopSignals() { return int(g_stop_signals); }
 
 CLI::Validator FiniteRange(double min, double max) {
   CLI::Validator range = CLI::Range(min, max);

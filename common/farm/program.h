@@ -4,6 +4,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include <functional>
 #include <optional>
 #include <string>
 
@@ -22,6 +23,15 @@ void LogToStderr(const std::string& role);
 // --version, 2 after one line on stderr ("PROGRAM: what is wrong") for a bad option (CLI11_PARSE
 // adds a second, "Run with --help ...").
 std::optional<int> ParseCommandLine(CLI::App& app, int argc, char** argv, const std::string& program);
+
+// Runs a program's body: whatever it throws is one line on stderr ("PROGRAM: what") and exit
+// code 1; otherwise the body's code.
+int RunProgram(const std::string& program, const std::function<int()>& body);
+
+// SIGTERM and SIGINT are counted from now on (the handler only counts); StopSignals() is how
+// many arrived, for a loop or a watcher thread to act on (no work in the handler).
+void CatchStopSignals();
+int StopSignals();
 
 // CLI::Range for a floating-point option that also refuses NaN: CLI::Range tests
 // `value < min || value > max`, which NaN passes (`--poll-interval nan` made the worker poll
