@@ -1,5 +1,5 @@
 // The column clustering of matrix row-column sampling (Hašan, Pellacini, Bala 2007, Sec. 3.3–3.5
-// and 4), separate from the stages in mrcs.cpp (which defines these functions) so that tests can
+// and 4), in its own file (mrcs_clustering.cpp), apart from the stages in mrcs.cpp, so that tests can
 // check it on small matrices of their own.
 //
 // Notation (the paper's Table 1): R is the r × n matrix of sampled rows with RGB reduced to
