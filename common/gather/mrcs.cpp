@@ -118,6 +118,61 @@ ClusterArtifact DecodeArtifact(const StageArtifact& bytes, size_t lights) {
   return a;
 }
 
+// The row stage's payload (one per task): its reduced rows and, for colour averaging, the
+// per-channel Σ_i A_ij² of its rows. EncodeRowPayload and DecodeRowPayload are each other's
+// inverse (the decoder checks what the encoder wrote).
+struct RowPayload {
+  uint64_t seed = 0;
+  uint64_t lights = 0;
+  std::vector<ReducedRow> rows;
+  bool color = false;
+  std::vector<float> squares;  // 3 per light when `color`
+};
+
+std::vector<uint8_t> EncodeRowPayload(const RowPayload& p) {
+  PayloadWriter out;
+  out.Put(kRowsMagic);
+  out.Put(p.seed);
+  out.Put(p.lights);
+  out.Put(uint64_t(p.rows.size()));
+  out.Put(uint8_t(p.color ? 1 : 0));
+  for (const ReducedRow& row : p.rows) {
+    out.Put(row.row);
+    out.Put(uint64_t(row.values.size()));
+    out.PutArray(row.mask);
+    out.PutArray(row.values);
+  }
+  if (p.color) out.PutArray(p.squares);
+  return out.Take();
+}
+
+RowPayload DecodeRowPayload(const std::vector<uint8_t>& bytes, size_t lights) {
+  PayloadReader in(bytes, "mrcs", "row-stage payload");
+  RowPayload p;
+  if (in.Get<uint32_t>() != kRowsMagic)
+    throw std::runtime_error("mrcs: the row stage returned a payload of another method");
+  p.seed = in.Get<uint64_t>();
+  p.lights = in.Get<uint64_t>();
+  if (p.lights != lights) throw std::runtime_error("mrcs: row-stage payload was computed for another light set");
+  const size_t words = (lights + 63) / 64;
+  const uint64_t count = in.Get<uint64_t>();
+  p.color = in.Get<uint8_t>() != 0;
+  for (uint64_t k = 0; k < count; ++k) {
+    ReducedRow row;
+    row.row = in.Get<uint32_t>();
+    const uint64_t nnz = in.Get<uint64_t>();
+    in.GetArray(&row.mask, words);
+    in.GetArray(&row.values, nnz);
+    size_t bits = 0;
+    for (uint64_t word : row.mask) bits += size_t(std::popcount(word));
+    if (bits != nnz) throw std::runtime_error("mrcs: corrupt row-stage payload");
+    p.rows.push_back(std::move(row));
+  }
+  if (p.color) in.GetArray(&p.squares, 3 * lights);
+  if (!in.AtEnd()) throw std::runtime_error("mrcs: trailing bytes in a row-stage payload");
+  return p;
+}
+
 // Interleaves the low 16 bits of x and y (Morton order of pixels).
 uint32_t Morton2(uint32_t x, uint32_t y) {
   auto spread = [](uint32_t v) {
@@ -274,32 +329,24 @@ TaskOutput MatrixRowColumnSampling::RunRowTask(const GatherContext& ctx,
   });
   TaskOutput result;
   for (const MatrixCounters& c : counters) result.counters.Add(c);
-  PayloadWriter out;
-  out.Put(kRowsMagic);
-  out.Put(task.seed);
-  out.Put(uint64_t(n));
-  out.Put(uint64_t(nrows));
-  out.Put(uint8_t(color ? 1 : 0));
-  for (const ReducedRow& row : rows) {
-    out.Put(row.row);
-    out.Put(uint64_t(row.values.size()));
-    out.PutArray(row.mask);
-    out.PutArray(row.values);
-  }
+  RowPayload payload;
+  payload.seed = task.seed;
+  payload.lights = n;
+  payload.rows = std::move(rows);
+  payload.color = color;
   if (color) {
     // Per-channel Σ_i A_ij² over this task's rows, for the colour-averaged weights.
-    std::vector<float> squares(3 * n);
+    payload.squares.resize(3 * n);
     tbb::parallel_for(size_t(0), (n + kColumnBlock - 1) / kColumnBlock, [&](size_t b) {
       for (size_t j = b * kColumnBlock; j < std::min(n, (b + 1) * kColumnBlock); ++j)
         for (int c = 0; c < 3; ++c) {
           double sum = 0;
           for (size_t k = 0; k < nrows; ++k) sum += double(full[k][j][c]) * double(full[k][j][c]);
-          squares[3 * j + size_t(c)] = float(sum);
+          payload.squares[3 * j + size_t(c)] = float(sum);
         }
     });
-    out.PutArray(squares);
   }
-  result.payload = out.Take();
+  result.payload = EncodeRowPayload(payload);
   return result;
 }
 
@@ -309,39 +356,19 @@ StageArtifact MatrixRowColumnSampling::Combine(int stage, const GatherContext& c
   const LightingMatrix& matrix = ctx.matrix;
   const size_t n = matrix.cols(), words = (n + 63) / 64;
   const size_t blocks = (n + kColumnBlock - 1) / kColumnBlock;
-  // Decode the reduced rows, in task order.
+  // The reduced rows, in task order.
   uint64_t seed = 0;
   std::vector<ReducedRow> rows;
   std::vector<double> channel_squares;  // 3 per light, when colour averaging
   for (size_t t = 0; t < outputs.size(); ++t) {
-    PayloadReader in(outputs[t].payload, "mrcs", "row-stage payload");
-    if (in.Get<uint32_t>() != kRowsMagic)
-      throw std::runtime_error("mrcs: the row stage returned a payload of another method");
-    uint64_t task_seed = in.Get<uint64_t>();
-    if (t == 0) seed = task_seed;
-    if (task_seed != seed) throw std::runtime_error("mrcs: row-stage tasks disagree on the seed");
-    if (in.Get<uint64_t>() != n)
-      throw std::runtime_error("mrcs: row-stage payload was computed for another light set");
-    const uint64_t count = in.Get<uint64_t>();
-    const bool color = in.Get<uint8_t>() != 0;
-    for (uint64_t k = 0; k < count; ++k) {
-      ReducedRow row;
-      row.row = in.Get<uint32_t>();
-      const uint64_t nnz = in.Get<uint64_t>();
-      in.GetArray(&row.mask, words);
-      in.GetArray(&row.values, nnz);
-      size_t bits = 0;
-      for (uint64_t word : row.mask) bits += size_t(std::popcount(word));
-      if (bits != nnz) throw std::runtime_error("mrcs: corrupt row-stage payload");
-      rows.push_back(std::move(row));
-    }
-    if (color) {
-      std::vector<float> squares;
-      in.GetArray(&squares, 3 * n);
+    RowPayload payload = DecodeRowPayload(outputs[t].payload, n);
+    if (t == 0) seed = payload.seed;
+    if (payload.seed != seed) throw std::runtime_error("mrcs: row-stage tasks disagree on the seed");
+    for (ReducedRow& row : payload.rows) rows.push_back(std::move(row));
+    if (payload.color) {
       channel_squares.resize(3 * n, 0.0);
-      for (size_t i = 0; i < 3 * n; ++i) channel_squares[i] += double(squares[i]);
+      for (size_t i = 0; i < 3 * n; ++i) channel_squares[i] += double(payload.squares[i]);
     }
-    if (!in.AtEnd()) throw std::runtime_error("mrcs: trailing bytes in a row-stage payload");
   }
   const size_t r = rows.size();
   tbb::parallel_for(size_t(0), r, [&](size_t i) {
