@@ -316,25 +316,12 @@ bool Coordinator::Preview(const std::string& job_id, uint64_t have_tiles, JobPre
     for (const Task& t : job.tasks)
       if (t.state == TaskStateCode::kDone) done.emplace_back(t.spec, t.result_sha);
   }
-  // Assemble outside the lock: the finished tiles (in task order) into a film, the rest black.
+  // Assembled outside the lock.
   std::vector<std::pair<SubMatrixTask, TaskOutput>> tiles;
   for (const auto& [spec_bytes, sha] : done)
     tiles.emplace_back(DeserializeTask(spec_bytes), DeserializeTaskOutput(blobs_->Get(sha)));
-  GatherOutcome partial = PartialOutcome(*plan, tiles);
-  uint64_t nan_samples = 0;
-  Image image = AssembleImage(*plan, partial, &nan_samples);
-  const double shrink = std::min(1.0, double(JobPreview::kMaxSide) / std::max(image.width, image.height));
-  auto preview = std::make_shared<JobPreview>();
-  preview->width = std::max(1, int(image.width * shrink + 0.5));
-  preview->height = std::max(1, int(image.height * shrink + 0.5));
-  preview->tiles = done.size();
-  if (preview->width != image.width || preview->height != image.height)
-    image = ResizeImage(image, preview->width, preview->height);
-  const std::string path = options_.state_dir + "/jobs/" + std::to_string(id) + "/preview.png";
-  fs::create_directories(fs::path(path).parent_path());
-  WritePNG(path, image);
-  std::ifstream f(path, std::ios::binary);
-  preview->png.assign(std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>());
+  auto preview = std::make_shared<JobPreview>(
+      MakePreview(*plan, tiles, options_.state_dir + "/jobs/" + std::to_string(id) + "/preview.png"));
   {
     std::lock_guard lock(mu_);
     auto it = jobs_.find(id);
@@ -798,12 +785,8 @@ void Coordinator::FinishJob(int64_t id, std::shared_ptr<Plan> plan, int final_st
   }
   const GatherOutcome& outcome = engine.outcome();
   uint64_t nan_samples = 0;
-  Image image = AssembleImage(*plan, outcome, &nan_samples);
-  const std::string exr = options_.state_dir + "/jobs/" + std::to_string(id) + "/result.exr";
-  WriteEXR(exr, image);
-  std::ifstream f(exr, std::ios::binary);
-  Bytes bytes((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
-  const std::string result_sha = blobs_->Put(bytes);
+  const std::string result_sha = blobs_->Put(
+      WriteResultExr(*plan, outcome, options_.state_dir + "/jobs/" + std::to_string(id) + "/result.exr", &nan_samples));
   times.Add("film", Seconds(Clock::now() - t_film));
   nlohmann::json stats = MakeStats(*plan, FromProto(settings_proto), outcome, nan_samples, times,
                                    Seconds(Clock::now() - started));

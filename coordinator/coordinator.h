@@ -21,6 +21,7 @@
 #include "common/farm/render_job.h"
 #include "common/farm/serialize.h"
 #include "coordinator/blob_store.h"
+#include "coordinator/job_images.h"
 #include "coordinator/job_store.h"
 #include "coordinator/thread_pool.h"
 #include "lightfarm/v1/render.pb.h"
@@ -63,13 +64,6 @@ struct LeaseGrant {
 };
 
 // A preview of a running job's final stage: the film of the tiles finished so far.
-struct JobPreview {
-  std::string png;       // tone-mapped sRGB, at most kMaxSide pixels a side
-  int width = 0, height = 0;
-  uint64_t tiles = 0;    // final-stage tasks it shows
-  static constexpr int kMaxSide = 256;
-};
-
 struct JobResult {
   std::string stats_json;
   std::string exr_path;

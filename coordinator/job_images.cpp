@@ -1,0 +1,48 @@
+#include "coordinator/job_images.h"
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+
+#include "common/farm/stage_engine.h"
+#include "common/image/image_io.h"
+
+namespace lightfarm {
+
+namespace {
+
+std::string ReadFile(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  return std::string((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+}
+
+}  // namespace
+
+Bytes WriteResultExr(const Plan& plan, const GatherOutcome& outcome, const std::string& path,
+                     uint64_t* nan_samples) {
+  const Image image = AssembleImage(plan, outcome, nan_samples);
+  std::filesystem::create_directories(std::filesystem::path(path).parent_path());
+  WriteEXR(path, image);
+  const std::string bytes = ReadFile(path);
+  return Bytes(bytes.begin(), bytes.end());
+}
+
+JobPreview MakePreview(const Plan& plan, const std::vector<std::pair<SubMatrixTask, TaskOutput>>& tiles,
+                       const std::string& path) {
+  uint64_t nan_samples = 0;
+  Image image = AssembleImage(plan, PartialOutcome(plan, tiles), &nan_samples);
+  const double shrink = std::min(1.0, double(JobPreview::kMaxSide) / std::max(image.width, image.height));
+  JobPreview preview;
+  preview.width = std::max(1, int(image.width * shrink + 0.5));
+  preview.height = std::max(1, int(image.height * shrink + 0.5));
+  preview.tiles = tiles.size();
+  if (preview.width != image.width || preview.height != image.height)
+    image = ResizeImage(image, preview.width, preview.height);
+  std::filesystem::create_directories(std::filesystem::path(path).parent_path());
+  WritePNG(path, image);
+  preview.png = ReadFile(path);
+  return preview;
+}
+
+}  // namespace lightfarm

@@ -1,0 +1,32 @@
+// The images the coordinator makes of a job: the result EXR that FetchResult streams, and the
+// preview PNG of the finished tiles that WatchJob sends while the final stage runs. Both go
+// through files in the job's directory (OpenImageIO writes files) and come back as bytes.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "common/farm/render_job.h"
+#include "common/farm/serialize.h"
+
+namespace lightfarm {
+
+struct JobPreview {
+  std::string png;       // tone-mapped sRGB, at most kMaxSide pixels a side
+  int width = 0, height = 0;
+  uint64_t tiles = 0;    // final-stage tasks it shows
+  static constexpr int kMaxSide = 256;
+};
+
+// The image of a finished job's outcome, written as an EXR at `path`; returns the file's bytes.
+Bytes WriteResultExr(const Plan& plan, const GatherOutcome& outcome, const std::string& path,
+                     uint64_t* nan_samples);
+
+// The finished final-stage tiles (task order; the other pixels black), shrunk to at most
+// JobPreview::kMaxSide pixels a side, written as a PNG at `path`.
+JobPreview MakePreview(const Plan& plan, const std::vector<std::pair<SubMatrixTask, TaskOutput>>& tiles,
+                       const std::string& path);
+
+}  // namespace lightfarm
