@@ -193,6 +193,79 @@ SegmentSimilarityParams SimilarityParams(float scene_diagonal, const SegmentSlic
   return p;
 }
 
+// Whether a segment on a partition boundary is split in two, and where its halves go: each half
+// joins the part (its own or a graph neighbour's) whose segments it is most similar to on
+// average (Eq. 8); a segment inside one part, or whose halves agree, is kept whole.
+struct SegmentSplit {
+  bool split = false;
+  uint32_t part[2] = {0, 0};
+  RGB first_half_transmittance;
+  float tau[2] = {1, 1};
+};
+
+SegmentSplit DecideSplit(const Scene& scene, const EyeSegment& seg, size_t s,
+                         const std::vector<SegmentFeatures>& f, const std::vector<uint32_t>& p,
+                         const SegmentGraph& g, const SegmentSimilarityParams& sp, uint64_t seed) {
+  const idx_t begin = g.xadj[s], end = g.xadj[s + 1];
+  bool boundary = false;
+  for (idx_t e = begin; e < end; ++e) boundary |= p[size_t(g.adjncy[size_t(e)])] != p[s];
+  if (!boundary || seg.medium < 0 || !(seg.length > 0)) return {};
+  const Medium& med = scene.media()[size_t(seg.medium)];
+  Rng rng(HashSeed({seed, uint64_t(RngStream::kSlicing), 3, s}));
+  const float half = 0.5f * seg.length;
+  const RGB t0 = med.Transmittance({seg.o, seg.d, half}, rng);
+  const RGB t1 = med.Transmittance({seg.o + seg.d * half, seg.d, half}, rng);
+  const SegmentFeatures halves[2] = {HalfFeatures(f[s], 0, t0.Average()),
+                                     HalfFeatures(f[s], 1, t1.Average())};
+  // The segment's part and those of its graph neighbours
+  std::vector<uint32_t> candidates{p[s]};
+  for (idx_t e = begin; e < end; ++e) candidates.push_back(p[size_t(g.adjncy[size_t(e)])]);
+  candidates = SortedUnique(std::move(candidates));
+  uint32_t best[2] = {p[s], p[s]};
+  for (int h = 0; h < 2; ++h) {
+    float best_affinity = -1;
+    for (uint32_t c : candidates) {
+      // Mean similarity of the half to the segment's neighbours in part c
+      float sum = 0;
+      int count = 0;
+      for (idx_t e = begin; e < end; ++e) {
+        const size_t t = size_t(g.adjncy[size_t(e)]);
+        if (p[t] != c) continue;
+        sum += SegmentSimilarity(halves[h], f[t], sp).Sum();
+        ++count;
+      }
+      if (count == 0) continue;
+      const float affinity = sum / float(count);
+      // Ties keep the segment's own part (candidates are sorted, so compare explicitly)
+      if (affinity > best_affinity || (affinity == best_affinity && c == p[s])) {
+        best_affinity = affinity;
+        best[h] = c;
+      }
+    }
+  }
+  SegmentSplit out;
+  out.part[0] = best[0];
+  out.part[1] = best[1];
+  out.split = best[0] != best[1];
+  out.first_half_transmittance = t0;
+  out.tau[0] = halves[0].tau;
+  out.tau[1] = halves[1].tau;
+  return out;
+}
+
+// Each sample's segments stay contiguous and in order: their ranges after a rebuild.
+void RecomputeSampleRanges(ReceiverSet* receivers) {
+  for (CameraSample& cs : receivers->samples) {
+    cs.first_segment = -1;
+    cs.segment_count = 0;
+  }
+  for (size_t s = 0; s < receivers->segments.size(); ++s) {
+    CameraSample& cs = receivers->samples[receivers->segments[s].sample];
+    if (cs.segment_count == 0) cs.first_segment = int32_t(s);
+    ++cs.segment_count;
+  }
+}
+
 }  // namespace
 
 SegmentSimilarityTerms SegmentSimilarity(const SegmentFeatures& a, const SegmentFeatures& b,
@@ -286,59 +359,9 @@ size_t RefineSegmentSlices(const Scene& scene, ReceiverSet* receivers,
   const SegmentGraph g = BuildGraph(f, sp, std::max<size_t>(1, options.graph_neighbors));
 
   // Decisions read only the partition before refinement: independent per segment.
-  struct Split {
-    bool split = false;
-    uint32_t part[2] = {0, 0};
-    RGB first_half_transmittance;
-    float tau[2] = {1, 1};
-  };
-  std::vector<Split> splits(n);
+  std::vector<SegmentSplit> splits(n);
   tbb::parallel_for(size_t(0), n, [&](size_t s) {
-    const EyeSegment& seg = receivers->segments[s];
-    const idx_t begin = g.xadj[s], end = g.xadj[s + 1];
-    bool boundary = false;
-    for (idx_t e = begin; e < end; ++e) boundary |= p[size_t(g.adjncy[size_t(e)])] != p[s];
-    if (!boundary || seg.medium < 0 || !(seg.length > 0)) return;
-    const Medium& med = scene.media()[size_t(seg.medium)];
-    Rng rng(HashSeed({options.seed, uint64_t(RngStream::kSlicing), 3, s}));
-    const float half = 0.5f * seg.length;
-    const RGB t0 = med.Transmittance({seg.o, seg.d, half}, rng);
-    const RGB t1 = med.Transmittance({seg.o + seg.d * half, seg.d, half}, rng);
-    const SegmentFeatures halves[2] = {HalfFeatures(f[s], 0, t0.Average()),
-                                       HalfFeatures(f[s], 1, t1.Average())};
-    // The segment's part and those of its graph neighbours
-    std::vector<uint32_t> candidates{p[s]};
-    for (idx_t e = begin; e < end; ++e) candidates.push_back(p[size_t(g.adjncy[size_t(e)])]);
-    candidates = SortedUnique(std::move(candidates));
-    uint32_t best[2] = {p[s], p[s]};
-    for (int h = 0; h < 2; ++h) {
-      float best_affinity = -1;
-      for (uint32_t c : candidates) {
-        // Mean similarity of the half to the segment's neighbours in part c
-        float sum = 0;
-        int count = 0;
-        for (idx_t e = begin; e < end; ++e) {
-          const size_t t = size_t(g.adjncy[size_t(e)]);
-          if (p[t] != c) continue;
-          sum += SegmentSimilarity(halves[h], f[t], sp).Sum();
-          ++count;
-        }
-        if (count == 0) continue;
-        const float affinity = sum / float(count);
-        // Ties keep the segment's own part (candidates are sorted, so compare explicitly)
-        if (affinity > best_affinity || (affinity == best_affinity && c == p[s])) {
-          best_affinity = affinity;
-          best[h] = c;
-        }
-      }
-    }
-    Split& out = splits[s];
-    out.part[0] = best[0];
-    out.part[1] = best[1];
-    out.split = best[0] != best[1];
-    out.first_half_transmittance = t0;
-    out.tau[0] = halves[0].tau;
-    out.tau[1] = halves[1].tau;
+    splits[s] = DecideSplit(scene, receivers->segments[s], s, f, p, g, sp, options.seed);
   });
 
   // Rebuild the segment list in the same (sample) order, halves in place of split segments.
@@ -379,7 +402,7 @@ size_t RefineSegmentSlices(const Scene& scene, ReceiverSet* receivers,
     created.push_back(is_new ? 1 : 0);
   };
   for (size_t s = 0; s < n; ++s) {
-    const Split& sp_s = splits[s];
+    const SegmentSplit& sp_s = splits[s];
     if (!sp_s.split) {
       // Not split: the segment keeps its part (even when both halves prefer another one: moving
       // whole segments would unbalance the partition METIS chose)
@@ -395,16 +418,7 @@ size_t RefineSegmentSlices(const Scene& scene, ReceiverSet* receivers,
     append(a, HalfFeatures(old_features[s], 0, sp_s.tau[0]), sp_s.part[0], true);
     append(b, HalfFeatures(old_features[s], 1, sp_s.tau[1]), sp_s.part[1], true);
   }
-  // Each sample's segments stay contiguous and in order: recompute their ranges.
-  for (CameraSample& cs : receivers->samples) {
-    cs.first_segment = -1;
-    cs.segment_count = 0;
-  }
-  for (size_t s = 0; s < segs.size(); ++s) {
-    CameraSample& cs = receivers->samples[segs[s].sample];
-    if (cs.segment_count == 0) cs.first_segment = int32_t(s);
-    ++cs.segment_count;
-  }
+  RecomputeSampleRanges(receivers);
   if (merged_out) *merged_out = merged;
   return split_count;
 }
