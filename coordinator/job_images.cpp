@@ -2,22 +2,12 @@
 
 #include <algorithm>
 #include <filesystem>
-#include <fstream>
-#include <iterator>
 
 #include "common/farm/stage_engine.h"
 #include "common/image/image_io.h"
+#include "common/util/file.h"
 
 namespace lightfarm {
-
-namespace {
-
-std::string ReadFile(const std::string& path) {
-  std::ifstream f(path, std::ios::binary);
-  return std::string((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
-}
-
-}  // namespace
 
 Bytes WriteResultExr(const Plan& plan, const GatherOutcome& outcome, const std::string& path,
                      uint64_t* nan_samples) {

@@ -10,6 +10,7 @@
 
 #include "common/farm/farm_protocol.h"
 #include "common/farm/proto_convert.h"
+#include "common/util/file.h"
 
 namespace lightfarm {
 
@@ -534,16 +535,6 @@ class FarmServer::WorkerServiceImpl final : public v1::WorkerService::CallbackSe
 };
 
 // --- server ---------------------------------------------------------------------------------------
-
-namespace {
-
-std::string ReadFile(const std::string& path) {
-  std::ifstream f(path, std::ios::binary);
-  if (!f) throw std::runtime_error("cannot read " + path);
-  return std::string((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
-}
-
-}  // namespace
 
 FarmServer::FarmServer(Coordinator& coordinator, const ServerConfig& config) : coordinator_(coordinator) {
   pool_ = std::make_unique<ThreadPool>(std::max(1, config.rpc_threads));

@@ -15,6 +15,7 @@
 #include "common/farm/proto_convert.h"
 #include "common/farm/rpc.h"
 #include "common/farm/serialize.h"
+#include "common/util/file.h"
 #include "common/scene/scene_description.h"
 
 namespace lightfarm {
@@ -24,9 +25,8 @@ namespace fs = std::filesystem;
 namespace {
 
 Bytes ReadBytes(const std::string& path) {
-  std::ifstream f(path, std::ios::binary);
-  if (!f) throw std::runtime_error("cannot read " + path);
-  return Bytes((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  const std::string data = ReadFile(path);
+  return Bytes(data.begin(), data.end());
 }
 
 bool Transient(grpc::StatusCode c) {

@@ -10,18 +10,13 @@
 #include "common/farm/proto_convert.h"
 #include "common/scene/scene_description.h"
 #include "common/util/error.h"
+#include "common/util/file.h"
 
 namespace lightfarm {
 
 namespace fs = std::filesystem;
 
 namespace {
-
-std::string ReadAll(const std::string& path) {
-  std::ifstream f(path, std::ios::binary);
-  if (!f) throw std::runtime_error("cannot read " + path);
-  return std::string((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
-}
 
 bool Retryable(grpc::StatusCode c) {
   return c == grpc::StatusCode::UNAVAILABLE || c == grpc::StatusCode::DEADLINE_EXCEEDED ||
@@ -85,7 +80,7 @@ v1::SceneManifest RenderClient::UploadScene(const std::string& scene_path, bool 
   Prepare(&ctx, timeout_s_);
   v1::FindMissingBlobsResponse missing;
   ThrowIfError(stub_->FindMissingBlobs(&ctx, query, &missing));
-  for (const std::string& sha : missing.missing()) UploadBlob(ReadAll(path_of.at(sha)));
+  for (const std::string& sha : missing.missing()) UploadBlob(ReadFile(path_of.at(sha)));
   return manifest;
 }
 

@@ -2,19 +2,10 @@
 
 #include <algorithm>
 #include <cctype>
-#include <fstream>
+
+#include "common/util/file.h"
 
 namespace lightfarm {
-
-namespace {
-
-std::string ReadAll(const std::string& path) {
-  std::ifstream f(path, std::ios::binary);
-  if (!f) throw std::runtime_error("cannot read " + path);
-  return std::string((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
-}
-
-}  // namespace
 
 const char* StatusCodeName(grpc::StatusCode code) {
   switch (code) {
@@ -67,7 +58,7 @@ std::shared_ptr<grpc::Channel> MakeChannel(const ChannelOptions& o) {
   // A CA file means TLS: `--tls-ca F` alone must not fall back to plaintext (the worker did).
   if (o.tls || !o.tls_ca.empty()) {
     grpc::SslCredentialsOptions ssl;
-    if (!o.tls_ca.empty()) ssl.pem_root_certs = ReadAll(o.tls_ca);
+    if (!o.tls_ca.empty()) ssl.pem_root_certs = ReadFile(o.tls_ca);
     creds = grpc::SslCredentials(ssl);
   } else {
     creds = grpc::InsecureChannelCredentials();
@@ -77,7 +68,7 @@ std::shared_ptr<grpc::Channel> MakeChannel(const ChannelOptions& o) {
 
 std::string ReadTokenFile(const std::string& path) {
   if (path.empty()) return "";
-  std::string t = ReadAll(path);
+  std::string t = ReadFile(path);
   const auto not_space = [](unsigned char c) { return !std::isspace(c); };
   t.erase(t.begin(), std::find_if(t.begin(), t.end(), not_space));
   t.erase(std::find_if(t.rbegin(), t.rend(), not_space).base(), t.end());
