@@ -315,6 +315,72 @@ inline bool LightingMatrix::DiffuseElement(const RowData& row, const VirtualLigh
          IsFinite(*origin) && IsFinite(*dir);
 }
 
+// The unshadowed value of any other surface element (every BSDF, every light kind but VRLs) and
+// its shadow ray; false when it is zero. The general path of EvaluateBatched, inlined into it.
+[[gnu::always_inline]] inline bool LightingMatrix::GeneralElement(
+    const RowData& row, const VirtualLight& L, uint32_t lj, const std::vector<Material>& materials,
+    RGB* value_out, float* scale_unclamped_out, Vec3* w_out, Vec3* o_out, Vec3* dir_out,
+    float* tfar_out) const {
+  if (L.depth > row.light_depth_budget) return false;
+  // Direction to the light and the light's side of the element.
+  Vec3& w = *w_out;
+  float dist2 = 0;
+  if (L.IsDirectional()) {
+    w = -L.n;
+  } else {
+    Vec3 d = L.p - row.p;
+    dist2 = LengthSquared(d);
+    if (!(dist2 > 0)) return false;
+    w = d / std::sqrt(dist2);
+  }
+  Vec3 wi_local = row.frame.ToLocal(w);
+  // The geometric and shading normals must agree on the side, or light would leak.
+  if (Dot(row.ng, w) * wi_local.z <= 0) return false;
+  RGB f = EvalBSDF(materials[row.material], row.wo_local, wi_local, TransportMode::kRadiance);
+  if (f.IsBlack()) return false;
+  RGB intensity;
+  if (L.kind == VirtualLightKind::kSurfaceVPL) {
+    // As LightIntensityTowards, with the light's frame computed once per light.
+    const SurfaceLightFrame& lf = light_frames_[lj];
+    Vec3 out_local = lf.frame.ToLocal(-w);
+    if (Dot(L.ng, -w) * out_local.z <= 0) return false;
+    RGB fl = EvalBSDF(materials[L.material], lf.wi_local, out_local, TransportMode::kImportance);
+    intensity = L.power * fl * std::abs(out_local.z);
+  } else {
+    intensity = LightIntensityTowards(L, w, materials);
+  }
+  if (intensity.IsBlack()) return false;
+  float geometry = 1.f, scale_unclamped = 1.f;
+  if (!L.IsDirectional()) {
+    if (L.IsClamped() && dist2 < clamp_distance2_) {
+      geometry = 1.f / clamp_distance2_;
+      scale_unclamped = clamp_distance2_ / dist2;
+    } else {
+      geometry = 1.f / dist2;
+    }
+  }
+  RGB& value = *value_out;
+  value = row.throughput * f * intensity * (std::abs(wi_local.z) * geometry);
+  *scale_unclamped_out = scale_unclamped;
+  if (value.IsBlack() || !value.IsFinite()) return false;
+  // Shadow ray between offset end points; dir is left unnormalised with tfar just short of 1.
+  Vec3& o = *o_out;
+  Vec3& dir = *dir_out;
+  float& tfar = *tfar_out;
+  o = OffsetRayOrigin(row.p, row.ng, w);
+  if (L.IsDirectional()) {
+    dir = w;
+    tfar = kInfinity;
+  } else {
+    Vec3 target = (L.kind == VirtualLightKind::kPoint || L.kind == VirtualLightKind::kMediumVPL)
+                      ? L.p
+                      : OffsetRayOrigin(L.p, L.ng, -w);
+    dir = target - o;
+    tfar = 1.f - 1e-4f;
+  }
+  return IsFinite(o) && IsFinite(dir);  // never hand Embree a NaN ray
+}
+
 // Sink contract: sink(k, v) gets every entry's value; an entry whose value is zero may get that
 // zero more than once (the default, then again when its shadow ray is occluded), and a
 // SkipsZeroDefaults sink may not get it at all.
@@ -443,61 +509,10 @@ void LightingMatrix::EvaluateBatched(size_t n, EntryFn entry, SinkFn sink,
         sink(begin + k, VrlPointElement(ri, lj, counters));
         continue;
       }
-      if (L.depth > row.light_depth_budget) continue;
-      // Direction to the light and the light's side of the element.
-      Vec3 w;
-      float dist2 = 0;
-      if (L.IsDirectional()) {
-        w = -L.n;
-      } else {
-        Vec3 d = L.p - row.p;
-        dist2 = LengthSquared(d);
-        if (!(dist2 > 0)) continue;
-        w = d / std::sqrt(dist2);
-      }
-      Vec3 wi_local = row.frame.ToLocal(w);
-      // The geometric and shading normals must agree on the side, or light would leak.
-      if (Dot(row.ng, w) * wi_local.z <= 0) continue;
-      RGB f = EvalBSDF(materials[row.material], row.wo_local, wi_local, TransportMode::kRadiance);
-      if (f.IsBlack()) continue;
-      RGB intensity;
-      if (L.kind == VirtualLightKind::kSurfaceVPL) {
-        // As LightIntensityTowards, with the light's frame computed once per light.
-        const SurfaceLightFrame& lf = light_frames_[lj];
-        Vec3 out_local = lf.frame.ToLocal(-w);
-        if (Dot(L.ng, -w) * out_local.z <= 0) continue;
-        RGB fl = EvalBSDF(materials[L.material], lf.wi_local, out_local, TransportMode::kImportance);
-        intensity = L.power * fl * std::abs(out_local.z);
-      } else {
-        intensity = LightIntensityTowards(L, w, materials);
-      }
-      if (intensity.IsBlack()) continue;
-      float geometry = 1.f, scale_unclamped = 1.f;
-      if (!L.IsDirectional()) {
-        if (L.IsClamped() && dist2 < clamp_distance2_) {
-          geometry = 1.f / clamp_distance2_;
-          scale_unclamped = clamp_distance2_ / dist2;
-        } else {
-          geometry = 1.f / dist2;
-        }
-      }
-      RGB value = row.throughput * f * intensity * (std::abs(wi_local.z) * geometry);
-      if (value.IsBlack() || !value.IsFinite()) continue;
-      // Shadow ray between offset end points; dir is left unnormalised with tfar just short of 1.
-      Vec3 o = OffsetRayOrigin(row.p, row.ng, w);
-      Vec3 dir;
-      float tfar;
-      if (L.IsDirectional()) {
-        dir = w;
-        tfar = kInfinity;
-      } else {
-        Vec3 target = (L.kind == VirtualLightKind::kPoint || L.kind == VirtualLightKind::kMediumVPL)
-                          ? L.p
-                          : OffsetRayOrigin(L.p, L.ng, -w);
-        dir = target - o;
-        tfar = 1.f - 1e-4f;
-      }
-      if (!IsFinite(o) || !IsFinite(dir)) continue;  // never hand Embree a NaN ray
+      RGB value;
+      float scale_unclamped, tfar;
+      Vec3 w, o, dir;
+      if (!GeneralElement(row, L, lj, materials, &value, &scale_unclamped, &w, &o, &dir, &tfar)) continue;
       add_ray(ri, lj, k, value, scale_unclamped, w, o, dir, tfar, L.IsDirectional(), true);
     }
     counters->elements += count;

@@ -171,6 +171,11 @@ class LightingMatrix {
   // Bit-identical to the general path in EvaluateBatched.
   bool DiffuseElement(const RowData& row, const VirtualLight& V, const DiffuseLight& L, RGB* value,
                       float* scale_unclamped, Vec3* w, Vec3* origin, Vec3* dir) const;
+  // Any other surface element (every BSDF, every light kind but VRLs): its unshadowed value,
+  // the share the clamp removed, and its shadow ray; false when it is zero.
+  bool GeneralElement(const RowData& row, const VirtualLight& L, uint32_t lj,
+                      const std::vector<Material>& materials, RGB* value, float* scale_unclamped,
+                      Vec3* w, Vec3* origin, Vec3* dir, float* tfar) const;
   // One element of an eye-segment row (Huo 2016, Eq. 4: light → eye segment): the integral of
   // in-scattered light along the segment, by equi-angular sampling (Kulla & Fajardo 2012) for
   // point-like lights and transmittance-proportional sampling for directional ones.
