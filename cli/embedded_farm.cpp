@@ -11,6 +11,7 @@
 #include "common/farm/render_client.h"
 #include "common/image/image_io.h"
 #include "common/util/error.h"
+#include "common/util/file.h"
 #include "coordinator/services.h"
 #include "worker/worker.h"
 
@@ -32,13 +33,7 @@ EmbeddedRender RenderOnEmbeddedFarm(const std::string& scene_path, const RenderS
   std::random_device rd;
   const fs::path dir = fs::temp_directory_path() /
                        ("lightfarm-embedded-" + std::to_string(getpid()) + "-" + std::to_string(rd()));
-  struct RemoveDir {
-    fs::path p;
-    ~RemoveDir() {
-      std::error_code ec;
-      fs::remove_all(p, ec);
-    }
-  } cleanup{dir};
+  ScopedRemoveDir cleanup(dir);
 
   // Nothing crashes independently in one process: leases never need to expire, and the
   // coordinator's limits are the CLI's own.

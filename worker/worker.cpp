@@ -226,13 +226,7 @@ std::shared_ptr<Worker::JobRuntime> Worker::Runtime(const v1::JobContext& job) {
   rt->key = key;
   // Materialize the scene files in their relative layout, then build as the coordinator did.
   const fs::path dir = fs::path(cache_->TempPath() + "-scene");
-  struct RemoveDir {
-    fs::path p;
-    ~RemoveDir() {
-      std::error_code ec;
-      fs::remove_all(p, ec);
-    }
-  } cleanup{dir};
+  ScopedRemoveDir cleanup(dir);
   for (const v1::SceneFile& f : job.scene().files()) {
     const fs::path rel(f.path());
     if (!IsSafeScenePath(f.path())) throw std::runtime_error("unsafe scene path " + f.path());

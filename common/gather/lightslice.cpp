@@ -215,9 +215,7 @@ TaskOutput LightSliceGather::RunRowTask(const GatherContext& ctx, const SubMatri
       }
     }
     out.Put(row);
-    out.Put(uint64_t(nonzero.size()));
-    out.PutArray(mask);
-    out.PutArray(nonzero);
+    out.PutSparse(mask, nonzero);
   }
   result.payload = out.Take();
   result.stats["lightslice.row_payload_bytes"] = double(result.payload.size());
@@ -247,12 +245,7 @@ StageArtifact LightSliceGather::Combine(int stage, const GatherContext& ctx,
       SampledRow row;
       row.slice = slice;
       row.row = in.Get<uint32_t>();
-      const uint64_t nnz = in.Get<uint64_t>();
-      in.GetArray(&row.mask, words);
-      in.GetArray(&row.values, nnz);
-      size_t bits = 0;
-      for (uint64_t word : row.mask) bits += size_t(std::popcount(word));
-      if (bits != nnz) throw std::runtime_error("lightslice: corrupt row payload");
+      in.GetSparse(words, &row.mask, &row.values);
       rows.push_back(std::move(row));
     }
     if (!in.AtEnd()) throw std::runtime_error("lightslice: trailing bytes in a row payload");

@@ -138,9 +138,7 @@ std::vector<uint8_t> EncodeRowPayload(const RowPayload& p) {
   out.Put(uint8_t(p.color ? 1 : 0));
   for (const ReducedRow& row : p.rows) {
     out.Put(row.row);
-    out.Put(uint64_t(row.values.size()));
-    out.PutArray(row.mask);
-    out.PutArray(row.values);
+    out.PutSparse(row.mask, row.values);
   }
   if (p.color) out.PutArray(p.squares);
   return out.Take();
@@ -160,12 +158,7 @@ RowPayload DecodeRowPayload(const std::vector<uint8_t>& bytes, size_t lights) {
   for (uint64_t k = 0; k < count; ++k) {
     ReducedRow row;
     row.row = in.Get<uint32_t>();
-    const uint64_t nnz = in.Get<uint64_t>();
-    in.GetArray(&row.mask, words);
-    in.GetArray(&row.values, nnz);
-    size_t bits = 0;
-    for (uint64_t word : row.mask) bits += size_t(std::popcount(word));
-    if (bits != nnz) throw std::runtime_error("mrcs: corrupt row-stage payload");
+    in.GetSparse(words, &row.mask, &row.values);
     p.rows.push_back(std::move(row));
   }
   if (p.color) in.GetArray(&p.squares, 3 * lights);

@@ -5,6 +5,7 @@
 #pragma once
 
 #include <cstdint>
+#include <bit>
 #include <cstring>
 #include <stdexcept>
 #include <string>
@@ -21,6 +22,13 @@ class PayloadWriter {
   template <typename T>
   void PutArray(const std::vector<T>& v) {
     Append(v.data(), v.size() * sizeof(T));
+  }
+  // A sparse row (the reduced rows of mrcs and lightslice): its count of non-zero entries, the
+  // bitmap of where they are, and their values in order. PayloadReader::GetSparse reads it back.
+  void PutSparse(const std::vector<uint64_t>& mask, const std::vector<float>& values) {
+    Put(uint64_t(values.size()));
+    PutArray(mask);
+    PutArray(values);
   }
   std::vector<uint8_t> Take() { return std::move(bytes_); }
 
@@ -49,6 +57,16 @@ class PayloadReader {
     v->resize(count);
     if (count == 0) return;  // an empty vector's data() may be null: no memcpy (UBSan)
     std::memcpy(v->data(), Take(count * sizeof(T)), count * sizeof(T));
+  }
+  // PayloadWriter::PutSparse's row, `words` bitmap words long; a bitmap whose set bits are not
+  // the count of values is corrupt.
+  void GetSparse(size_t words, std::vector<uint64_t>* mask, std::vector<float>* values) {
+    const uint64_t count = Get<uint64_t>();
+    GetArray(mask, words);
+    GetArray(values, count);
+    uint64_t bits = 0;
+    for (uint64_t word : *mask) bits += uint64_t(std::popcount(word));
+    if (bits != count) Fail();
   }
   void Skip(size_t n) { Take(n); }
   bool AtEnd() const { return pos_ == bytes_.size(); }
