@@ -4,14 +4,12 @@
 
 #include <algorithm>
 #include <filesystem>
-#include <fstream>
 #include <random>
 #include <sstream>
 
 #include "common/farm/proto_convert.h"
 #include "common/farm/stage_engine.h"
 #include "common/gather/auto_method.h"
-#include "common/image/image_io.h"
 #include "common/util/error.h"
 
 namespace lightfarm {
@@ -65,13 +63,6 @@ double Seconds(std::chrono::steady_clock::duration d) {
   return std::chrono::duration<double>(d).count();
 }
 
-std::string ReplaceAll(std::string s, const std::string& from, const std::string& to) {
-  if (from.empty()) return s;
-  for (size_t pos = 0; (pos = s.find(from, pos)) != std::string::npos; pos += to.size())
-    s.replace(pos, from.size(), to);
-  return s;
-}
-
 std::string RandomId() {
   std::random_device rd;
   std::ostringstream os;
@@ -86,13 +77,11 @@ Coordinator::Coordinator(CoordinatorOptions options) : options_(std::move(option
   fs::create_directories(options_.state_dir);
   store_ = std::make_unique<JobStore>(options_.state_dir + "/state.sqlite");
   blobs_ = std::make_unique<BlobStore>(options_.state_dir + "/blobs", options_.max_blob_bytes);
+  job_planner_ = std::make_unique<JobPlanner>(
+      options_.state_dir, PlanLimits{options_.max_resolution, options_.max_spp}, *store_, *blobs_);
 }
 
 Coordinator::~Coordinator() { Stop(); }
-
-std::string Coordinator::SceneDir(int64_t id) const {
-  return options_.state_dir + "/jobs/" + std::to_string(id) + "/scene";
-}
 
 void Coordinator::Start() {
   planner_ = std::make_unique<ThreadPool>(std::max(1, options_.planner_threads));
@@ -317,11 +306,7 @@ bool Coordinator::Preview(const std::string& job_id, uint64_t have_tiles, JobPre
       if (t.state == TaskStateCode::kDone) done.emplace_back(t.spec, t.result_sha);
   }
   // Assembled outside the lock.
-  std::vector<std::pair<SubMatrixTask, TaskOutput>> tiles;
-  for (const auto& [spec_bytes, sha] : done)
-    tiles.emplace_back(DeserializeTask(spec_bytes), DeserializeTaskOutput(blobs_->Get(sha)));
-  auto preview = std::make_shared<JobPreview>(
-      MakePreview(*plan, tiles, options_.state_dir + "/jobs/" + std::to_string(id) + "/preview.png"));
+  auto preview = std::make_shared<JobPreview>(job_planner_->Preview(id, *plan, done));
   {
     std::lock_guard lock(mu_);
     auto it = jobs_.find(id);
@@ -595,100 +580,61 @@ void Coordinator::MaybeStartPlanningLocked() {
 
 void Coordinator::PlanJob(int64_t id) {
   v1::SceneManifest manifest;
-  v1::RenderSettings settings_proto;
+  v1::RenderSettings settings;
   int stage = 0;
   {
     std::lock_guard lock(mu_);
     Job& job = jobs_.at(id);
     if (job.state != v1::JOB_STATE_PLANNING) return;  // cancelled meanwhile
     manifest = job.manifest;
-    settings_proto = job.settings;
+    settings = job.settings;
     stage = job.stage;
   }
-  const std::string dir = SceneDir(id);
-  std::shared_ptr<Plan> plan;
-  PhaseTimes times;
-  std::vector<Task> tasks;
-  std::string lights_sha, receivers_sha, artifact_sha;
-  std::vector<TaskRecord> records;
+  PlannedStage planned;
   try {
-    // Materialize the scene files in their relative layout, then plan as `render` would.
-    std::error_code ec;
-    fs::remove_all(dir, ec);
-    for (const v1::SceneFile& f : manifest.files()) {
-      fs::path target = fs::path(dir) / f.path();
-      fs::create_directories(target.parent_path());
-      fs::copy_file(blobs_->Path(f.sha256()), target, fs::copy_options::overwrite_existing);
-    }
-    const RenderSettings settings = FromProto(settings_proto);
-    try {
-      plan = std::make_shared<Plan>(BuildPlan(dir + "/" + manifest.root(), settings, &times));
-    } catch (const SceneError& e) {
-      // Name the file as the user knows it: relative to the scene's directory.
-      throw std::runtime_error(ReplaceAll(e.what(), dir + "/", ""));
-    }
-    if (plan->receivers->width > options_.max_resolution || plan->receivers->height > options_.max_resolution)
-      throw std::runtime_error("the scene's resolution " + std::to_string(plan->receivers->width) + "x" +
-                               std::to_string(plan->receivers->height) + " exceeds the limit of " +
-                               std::to_string(options_.max_resolution) + " per axis");
-    if (plan->receivers->spp > options_.max_spp)
-      throw std::runtime_error("the method's default of " + std::to_string(plan->receivers->spp) +
-                               " samples per pixel exceeds the limit of " + std::to_string(options_.max_spp) +
-                               " (set spp)");
-    lights_sha = blobs_->Put(SerializeLightSet(*plan->lights));
-    receivers_sha = blobs_->Put(SerializeReceiverSet(*plan->receivers));
-    // The stage to (re)start: its input artifact is the previous stage's.
-    StageArtifact artifact;
-    if (stage > 0) {
-      auto artifacts = store_->Artifacts(id);
-      if (!artifacts.count(stage - 1)) throw std::runtime_error("artifact of stage " + std::to_string(stage - 1) + " is missing");
-      artifact_sha = artifacts.at(stage - 1);
-      artifact = blobs_->Get(artifact_sha);
-    }
-    std::vector<SubMatrixTask> specs = StageEngine(*plan).Tasks(stage, artifact);
-    store_->InsertTasks(id, stage, int(specs.size()));
-    records = store_->LoadTasks(id, stage);
-    for (const SubMatrixTask& s : specs) {
-      Task t;
-      t.spec = SerializeTask(s);
-      t.rows = s.rows.size();
-      tasks.push_back(std::move(t));
-    }
-    for (const TaskRecord& r : records) {
-      if (r.task_id < 0 || size_t(r.task_id) >= tasks.size()) continue;
-      Task& t = tasks[size_t(r.task_id)];
-      t.attempts = r.attempts;
-      t.failures = r.failures;
-      t.last_error = r.last_error;
-      if (r.state == int(TaskStateCode::kDone) && blobs_->Has(r.result_sha)) {
-        t.state = TaskStateCode::kDone;
-        t.result_sha = r.result_sha;
-      }
-    }
+    planned = job_planner_->PlanStage(id, manifest, settings, stage);
   } catch (const std::exception& e) {
     std::lock_guard lock(mu_);
     Job& job = jobs_.at(id);
     if (job.state == v1::JOB_STATE_PLANNING) FailJobLocked(job, e.what());
     return;
   }
+  std::vector<Task> tasks = MakeTasks(planned.specs);
+  for (const TaskRecord& r : planned.records) {
+    if (r.task_id < 0 || size_t(r.task_id) >= tasks.size()) continue;
+    Task& t = tasks[size_t(r.task_id)];
+    t.attempts = r.attempts;
+    t.failures = r.failures;
+    t.last_error = r.last_error;
+    if (r.state == int(TaskStateCode::kDone) && blobs_->Has(r.result_sha)) {
+      t.state = TaskStateCode::kDone;
+      t.result_sha = r.result_sha;
+    }
+  }
+  const uint64_t attempts = [&] {
+    uint64_t n = 0;
+    for (const TaskRecord& r : store_->LoadAllTasks(id)) n += uint64_t(r.attempts);
+    return n;
+  }();
 
   std::lock_guard lock(mu_);
   Job& job = jobs_.at(id);
   if (job.state != v1::JOB_STATE_PLANNING) return;
-  job.plan = plan;
-  job.times = times;
-  job.lights_sha = lights_sha;
-  job.receivers_sha = receivers_sha;
-  job.artifact_sha = artifact_sha;
-  job.clamp = plan->matrix_options.clamp;
-  job.stage_count = StageEngine(*plan).stage_count();
-  job.stage_name = StageEngine(*plan).stage_name(stage);
+  const StageEngine engine(*planned.plan);
+  job.plan = planned.plan;
+  job.times = planned.times;
+  job.lights_sha = planned.lights_sha;
+  job.receivers_sha = planned.receivers_sha;
+  job.artifact_sha = planned.artifact_sha;
+  job.clamp = planned.plan->matrix_options.clamp;
+  job.stage_count = engine.stage_count();
+  job.stage_name = engine.stage_name(stage);
   job.tasks = std::move(tasks);
   job.tasks_done = 0;
   for (const Task& t : job.tasks) job.tasks_done += t.state == TaskStateCode::kDone;
   job.done_at_stage_start = job.tasks_done;
   job.stage_started = Clock::now();
-  for (const TaskRecord& r : store_->LoadAllTasks(id)) job.attempts_total += uint64_t(r.attempts);
+  job.attempts_total += attempts;
   job.state = v1::JOB_STATE_RUNNING;
   store_->SetJobState(id, job.state, "");
   spdlog::info("job {}: stage {} ({}) has {} tasks, {} done", id, stage, job.stage_name,
@@ -697,6 +643,18 @@ void Coordinator::PlanJob(int64_t id) {
     job.advancing = true;
     planner_->Submit([this, id] { AdvanceStage(id); });
   }
+}
+
+std::vector<Coordinator::Task> Coordinator::MakeTasks(const std::vector<SubMatrixTask>& specs) {
+  std::vector<Task> tasks;
+  tasks.reserve(specs.size());
+  for (const SubMatrixTask& s : specs) {
+    Task t;
+    t.spec = SerializeTask(s);
+    t.rows = s.rows.size();
+    tasks.push_back(std::move(t));
+  }
+  return tasks;
 }
 
 void Coordinator::AdvanceStage(int64_t id) {
@@ -718,29 +676,14 @@ void Coordinator::AdvanceStage(int64_t id) {
       FinishJob(id, plan, stage);
       return;
     }
-    // This stage's outputs (task order) into the next stage's input, persisted first so that a
-    // restarted coordinator resumes from it.
-    std::vector<TaskOutput> outputs;
-    for (const std::string& sha : results) outputs.push_back(DeserializeTaskOutput(blobs_->Get(sha)));
-    StageArtifact artifact = engine.Combine(stage, outputs);
-    std::string artifact_sha = blobs_->Put(artifact);
-    store_->SetArtifact(id, stage, artifact_sha);
-    std::vector<SubMatrixTask> specs = engine.Tasks(stage + 1, artifact);
-    store_->InsertTasks(id, stage + 1, int(specs.size()));
-    store_->SetJobStage(id, stage + 1);
+    NextStage next = job_planner_->CombineStage(id, *plan, stage, results);
     std::lock_guard lock(mu_);
     Job& job = jobs_.at(id);
     if (job.state != v1::JOB_STATE_RUNNING) return;
     job.stage = stage + 1;
     job.stage_name = engine.stage_name(job.stage);
-    job.artifact_sha = artifact_sha;
-    job.tasks.clear();
-    for (const SubMatrixTask& s : specs) {
-      Task t;
-      t.spec = SerializeTask(s);
-      t.rows = s.rows.size();
-      job.tasks.push_back(std::move(t));
-    }
+    job.artifact_sha = next.artifact_sha;
+    job.tasks = MakeTasks(next.specs);
     job.tasks_done = 0;
     job.done_at_stage_start = 0;
     job.stage_started = Clock::now();
@@ -760,7 +703,7 @@ void Coordinator::FinishJob(int64_t id, std::shared_ptr<Plan> plan, int final_st
   std::vector<Bytes> specs;
   PhaseTimes times;
   Clock::time_point started;
-  v1::RenderSettings settings_proto;
+  v1::RenderSettings settings;
   std::string root;
   {
     std::lock_guard lock(mu_);
@@ -768,43 +711,19 @@ void Coordinator::FinishJob(int64_t id, std::shared_ptr<Plan> plan, int final_st
     for (const Task& t : job.tasks) specs.push_back(t.spec);
     times = job.times;
     started = job.started;
-    settings_proto = job.settings;
+    settings = job.settings;
     root = job.manifest.root();
   }
-  const auto t_film = Clock::now();
-  // Every stage's outputs in (stage, task) order (the store's), as the stage engine requires.
-  StageEngine engine(*plan);
-  uint64_t attempts = 0, tasks_recorded = 0;
-  for (const TaskRecord& r : store_->LoadAllTasks(id)) {
-    attempts += uint64_t(r.attempts);
-    ++tasks_recorded;
-    if (r.state != int(TaskStateCode::kDone)) throw std::runtime_error("task " + std::to_string(r.task_id) + " has no result");
-    TaskOutput out = DeserializeTaskOutput(blobs_->Get(r.result_sha));
-    engine.Count(out);
-    if (r.stage == final_stage) engine.AddFinal(DeserializeTask(specs.at(size_t(r.task_id))), out);
-  }
-  const GatherOutcome& outcome = engine.outcome();
-  uint64_t nan_samples = 0;
-  const std::string result_sha = blobs_->Put(
-      WriteResultExr(*plan, outcome, options_.state_dir + "/jobs/" + std::to_string(id) + "/result.exr", &nan_samples));
-  times.Add("film", Seconds(Clock::now() - t_film));
-  nlohmann::json stats = MakeStats(*plan, FromProto(settings_proto), outcome, nan_samples, times,
-                                   Seconds(Clock::now() - started));
-  stats["scene"] = root;
-  stats["farm"] = {{"job_id", std::to_string(id)}, {"attempts", attempts}, {"tasks", tasks_recorded}};
-  const std::string stats_json = stats.dump(2);
-  store_->FinishJob(id, v1::JOB_STATE_DONE, result_sha, stats_json);
-  std::error_code ec;
-  fs::remove_all(SceneDir(id), ec);
-
+  const FinishedJob finished = job_planner_->Finish(id, *plan, settings, root, final_stage, specs, times,
+                                                    Seconds(Clock::now() - started));
   std::lock_guard lock(mu_);
   Job& job = jobs_.at(id);
   job.state = v1::JOB_STATE_DONE;
-  job.result_sha = result_sha;
-  job.stats_json = stats_json;
+  job.result_sha = finished.result_sha;
+  job.stats_json = finished.stats_json;
   job.plan.reset();
   job.advancing = false;
-  spdlog::info("job {}: done ({} tasks, {} attempts)", id, tasks_recorded, attempts);
+  spdlog::info("job {}: done ({} tasks, {} attempts)", id, finished.tasks, finished.attempts);
   MaybeStartPlanningLocked();
 }
 

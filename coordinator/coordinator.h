@@ -1,6 +1,7 @@
-// The coordinator's core, without gRPC: jobs and their stage graphs, the task queue with leases,
-// planning and stage combination on the coordinator (oneTBB inside BuildPlan / Combine), film
-// assembly, and the durable state (JobStore + BlobStore) a restarted coordinator resumes from.
+// The coordinator's core, without gRPC: the scheduler. It owns the jobs, their stages' task queues
+// and the leases, under one lock; the planning I/O (scene, plan, stage combination, film) runs on
+// the planner pool through JobPlanner (job_planner.h), and the durable state (JobStore +
+// BlobStore) is what a restarted coordinator resumes from.
 // The gRPC services (services.h) translate requests to these calls and FarmError to statuses.
 #pragma once
 
@@ -22,6 +23,7 @@
 #include "common/farm/serialize.h"
 #include "coordinator/blob_store.h"
 #include "coordinator/job_images.h"
+#include "coordinator/job_planner.h"
 #include "coordinator/job_store.h"
 #include "coordinator/thread_pool.h"
 #include "lightfarm/v1/render.pb.h"
@@ -169,11 +171,12 @@ class Coordinator {
   void AdvanceStage(int64_t id);  // on the planner pool: Combine + next stage, or the film
   void FinishJob(int64_t id, std::shared_ptr<Plan> plan, int stage);
   void TickLoop();
-  std::string SceneDir(int64_t id) const;
+  static std::vector<Task> MakeTasks(const std::vector<SubMatrixTask>& specs);
 
   CoordinatorOptions options_;
   std::unique_ptr<JobStore> store_;
   std::unique_ptr<BlobStore> blobs_;
+  std::unique_ptr<JobPlanner> job_planner_;
   std::unique_ptr<ThreadPool> planner_;
   std::mutex mu_;
   std::mutex preview_mu_;  // one preview computed at a time (they are throttled per watcher)

@@ -1,0 +1,79 @@
+// The coordinator's planning I/O, kept apart from its scheduling: materializing a job's scene
+// from the blob store, planning a stage (as `render` would), combining a finished stage into the
+// next one's input, and assembling the result. Every call here runs on the planner pool without
+// the scheduler's lock; the durable state it writes (blobs, artifacts, task rows, the result)
+// is what a restarted coordinator resumes from. Coordinator (coordinator.h) owns the jobs, the
+// task queue and the leases, and only moves what these calls return into them.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "common/farm/render_job.h"
+#include "common/farm/serialize.h"
+#include "coordinator/blob_store.h"
+#include "coordinator/job_images.h"
+#include "coordinator/job_store.h"
+#include "lightfarm/v1/render.pb.h"
+
+namespace lightfarm {
+
+struct PlanLimits {
+  int max_resolution = 16384;  // per axis
+  int max_spp = 4096;
+};
+
+// A stage ready to run: the plan it belongs to, its task specs, and the store's rows for them
+// (a resumed stage keeps the attempts and results it had).
+struct PlannedStage {
+  std::shared_ptr<Plan> plan;
+  PhaseTimes times;
+  std::string lights_sha, receivers_sha, artifact_sha;
+  std::vector<SubMatrixTask> specs;
+  std::vector<TaskRecord> records;
+};
+
+// The stage after a combined one: its input artifact and its tasks.
+struct NextStage {
+  std::string artifact_sha;
+  std::vector<SubMatrixTask> specs;
+};
+
+struct FinishedJob {
+  std::string result_sha, stats_json;
+  uint64_t tasks = 0, attempts = 0;
+};
+
+class JobPlanner {
+ public:
+  JobPlanner(std::string state_dir, PlanLimits limits, JobStore& store, BlobStore& blobs)
+      : state_dir_(std::move(state_dir)), limits_(limits), store_(store), blobs_(blobs) {}
+
+  // Plans job `id` and readies `stage` (its input is the previous stage's stored artifact).
+  // Throws with a message for the user: scene errors name the file as submitted.
+  PlannedStage PlanStage(int64_t id, const v1::SceneManifest& manifest, const v1::RenderSettings& settings,
+                         int stage);
+  // Stage `stage`'s results (task order) combined into the next stage's input, stored first so
+  // that a restarted coordinator resumes from it; the next stage's task rows are created.
+  NextStage CombineStage(int64_t id, const Plan& plan, int stage, const std::vector<std::string>& result_shas);
+  // Every stage's outputs (the store's order) into the film, the result EXR and the stats; the
+  // job is recorded as done and its scene directory removed.
+  FinishedJob Finish(int64_t id, const Plan& plan, const v1::RenderSettings& settings, const std::string& root,
+                     int final_stage, const std::vector<Bytes>& final_specs, PhaseTimes times,
+                     double total_seconds);
+  // The preview of the finished tiles: (task spec, result blob) pairs of the final stage.
+  JobPreview Preview(int64_t id, const Plan& plan, const std::vector<std::pair<Bytes, std::string>>& done);
+
+ private:
+  std::string JobDir(int64_t id) const { return state_dir_ + "/jobs/" + std::to_string(id); }
+  void MaterializeScene(const v1::SceneManifest& manifest, const std::string& dir);
+
+  std::string state_dir_;
+  PlanLimits limits_;
+  JobStore& store_;
+  BlobStore& blobs_;
+};
+
+}  // namespace lightfarm
