@@ -14,17 +14,7 @@
 
 namespace lightfarm {
 
-namespace {
-
 constexpr size_t kBatch = 256;
-
-// The unshadowed value of one element and the shadow ray that decides it.
-struct Unshadowed {
-  RGB value;
-  float unclamped_scale = 1;  // value · unclamped_scale = the element without the clamp
-  Vec3 origin, dir;           // shadow ray: origin + t·dir, t ∈ (0, tfar)
-  float tfar = 0;
-};
 
 // The Lambertian fast path's geometry for a batch of entries, one slot each: the direction to
 // the light, the combined side/hemisphere tests, |cos| at the light, |cos| at the receiver times
@@ -36,6 +26,22 @@ struct DiffuseGeometryBatch {
   alignas(16) std::array<int32_t, kBatch> ok, back, light_back;
 };
 
+// The receivers of a Column batch, gathered for the kernel.
+struct ReceiverBatch {
+  alignas(16) std::array<float, kBatch> p[3], n[3], ng[3], wo_z;
+  alignas(16) std::array<int32_t, kBatch> budget;
+};
+
+namespace {
+
+// The unshadowed value of one element and the shadow ray that decides it.
+struct Unshadowed {
+  RGB value;
+  float unclamped_scale = 1;  // value · unclamped_scale = the element without the clamp
+  Vec3 origin, dir;           // shadow ray: origin + t·dir, t ∈ (0, tfar)
+  float tfar = 0;
+};
+
 // Receiver inputs of the kernel: one receiver for the whole batch, or one per entry.
 struct FixedReceiver {
   float p[3], n[3], ng[3], wo_z;
@@ -45,10 +51,6 @@ struct FixedReceiver {
   float Ng(int c, size_t) const { return ng[c]; }
   float WoZ(size_t) const { return wo_z; }
   int32_t Budget(size_t) const { return budget; }
-};
-struct ReceiverBatch {
-  alignas(16) std::array<float, kBatch> p[3], n[3], ng[3], wo_z;
-  alignas(16) std::array<int32_t, kBatch> budget;
 };
 struct ReceiverArrays {
   const float *p[3], *n[3], *ng[3], *wo_z;
@@ -381,6 +383,52 @@ inline bool LightingMatrix::DiffuseElement(const RowData& row, const VirtualLigh
   return IsFinite(o) && IsFinite(dir);  // never hand Embree a NaN ray
 }
 
+// The fast path's geometry of entries [begin, begin + count), a batch at a time, when the batch's
+// shape has one: Row with a Lambertian row, Column with a fast light. False: per-entry path.
+template <LightingMatrix::BatchShape kShape, typename EntryFn>
+[[gnu::always_inline]] inline bool LightingMatrix::BatchDiffuseGeometry(
+    size_t begin, size_t count, EntryFn& entry, uint32_t fixed, ReceiverBatch* receivers_out,
+    DiffuseGeometryBatch* geo) const {
+  ReceiverBatch& receivers = *receivers_out;
+  if constexpr (kShape == BatchShape::kRow) {
+    if (fixed < rows_.size() && rows_[fixed].diffuse) {
+      const RowData& r = rows_[fixed];
+      const FixedReceiver R{{r.p.x, r.p.y, r.p.z}, {r.frame.n.x, r.frame.n.y, r.frame.n.z},
+                            {r.ng.x, r.ng.y, r.ng.z}, r.wo_local.z, r.light_depth_budget};
+      const DiffuseLightArrays& a = light_arrays_;
+      const LightArrays L{{&a.px[begin], &a.py[begin], &a.pz[begin]},
+                          {&a.nx[begin], &a.ny[begin], &a.nz[begin]},
+                          {&a.ngx[begin], &a.ngy[begin], &a.ngz[begin]}, &a.wi_z[begin],
+                          &a.surface[begin], &a.two_sided[begin], &a.depth[begin]};
+      DiffuseGeometry(count, R, L, clamp_distance2_, geo);
+      return true;
+    }
+  } else if constexpr (kShape == BatchShape::kColumn) {
+    if (diffuse_lights_[fixed].fast && !rows_.empty()) {
+      for (size_t k = 0; k < count; ++k) {
+        uint32_t ri, lj;
+        entry(begin + k, &ri, &lj);
+        // Other rows (eye segments) get a dummy receiver; their slot is never read.
+        const RowData& r = rows_[ri < rows_.size() ? ri : 0];
+        for (int c = 0; c < 3; ++c) {
+          receivers.p[c][k] = r.p[c];
+          receivers.n[c][k] = r.frame.n[c];
+          receivers.ng[c][k] = r.ng[c];
+        }
+        receivers.wo_z[k] = r.wo_local.z;
+        receivers.budget[k] = r.light_depth_budget;
+      }
+      const DiffuseLight& d = diffuse_lights_[fixed];
+      const VirtualLight& V = lights_.lights[fixed];
+      const FixedLight L{{V.p.x, V.p.y, V.p.z}, {V.n.x, V.n.y, V.n.z}, {V.ng.x, V.ng.y, V.ng.z},
+                         d.wi_z, d.surface, V.two_sided, V.depth};
+      DiffuseGeometry(count, ReceiverArrays(receivers), L, clamp_distance2_, geo);
+      return true;
+    }
+  }
+  return false;
+}
+
 // Sink contract: sink(k, v) gets every entry's value; an entry whose value is zero may get that
 // zero more than once (the default, then again when its shadow ray is occluded), and a
 // SkipsZeroDefaults sink may not get it at all.
@@ -402,43 +450,7 @@ void LightingMatrix::EvaluateBatched(size_t n, EntryFn entry, SinkFn sink,
   for (size_t begin = 0; begin < n; begin += kBatch) {
     size_t count = std::min(kBatch, n - begin);
     size_t nrays = 0;
-    bool batched = false;
-    if constexpr (kShape == BatchShape::kRow) {
-      if (fixed < rows_.size() && rows_[fixed].diffuse) {
-        const RowData& r = rows_[fixed];
-        const FixedReceiver R{{r.p.x, r.p.y, r.p.z}, {r.frame.n.x, r.frame.n.y, r.frame.n.z},
-                              {r.ng.x, r.ng.y, r.ng.z}, r.wo_local.z, r.light_depth_budget};
-        const DiffuseLightArrays& a = light_arrays_;
-        const LightArrays L{{&a.px[begin], &a.py[begin], &a.pz[begin]},
-                            {&a.nx[begin], &a.ny[begin], &a.nz[begin]},
-                            {&a.ngx[begin], &a.ngy[begin], &a.ngz[begin]}, &a.wi_z[begin],
-                            &a.surface[begin], &a.two_sided[begin], &a.depth[begin]};
-        DiffuseGeometry(count, R, L, clamp_distance2_, &geo);
-        batched = true;
-      }
-    } else if constexpr (kShape == BatchShape::kColumn) {
-      if (diffuse_lights_[fixed].fast && !rows_.empty()) {
-        for (size_t k = 0; k < count; ++k) {
-          uint32_t ri, lj;
-          entry(begin + k, &ri, &lj);
-          // Other rows (eye segments) get a dummy receiver; their slot is never read.
-          const RowData& r = rows_[ri < rows_.size() ? ri : 0];
-          for (int c = 0; c < 3; ++c) {
-            receivers.p[c][k] = r.p[c];
-            receivers.n[c][k] = r.frame.n[c];
-            receivers.ng[c][k] = r.ng[c];
-          }
-          receivers.wo_z[k] = r.wo_local.z;
-          receivers.budget[k] = r.light_depth_budget;
-        }
-        const DiffuseLight& d = diffuse_lights_[fixed];
-        const VirtualLight& V = lights_.lights[fixed];
-        const FixedLight L{{V.p.x, V.p.y, V.p.z}, {V.n.x, V.n.y, V.n.z}, {V.ng.x, V.ng.y, V.ng.z},
-                           d.wi_z, d.surface, V.two_sided, V.depth};
-        DiffuseGeometry(count, ReceiverArrays(receivers), L, clamp_distance2_, &geo);
-        batched = true;
-      }
-    }
+    const bool batched = BatchDiffuseGeometry<kShape>(begin, count, entry, fixed, &receivers, &geo);
     // Queues the shadow ray of entry k (unshadowed `value`) for this batch's rtcOccluded1M.
     // keep = false writes the slot and leaves it to the next ray (no branch on the caller's test).
     auto add_ray = [&](uint32_t ri, uint32_t lj, size_t k, RGB value, float scale_unclamped, Vec3 w,

@@ -18,6 +18,10 @@
 
 namespace lightfarm {
 
+// Scratch of the batched fast path (lighting_matrix.cpp).
+struct DiffuseGeometryBatch;
+struct ReceiverBatch;
+
 struct MatrixOptions {
   // Geometry-term clamp for virtual lights: 1/d² is replaced by 1/max(d², d_min²) with
   // d_min = clamp · (scene bounding-sphere radius). 0 disables it. Real point lights are exact.
@@ -189,6 +193,9 @@ class LightingMatrix {
   // the light). The last two run the fast path's geometry a batch at a time (vectorised).
   enum class BatchShape { kEntries, kRow, kColumn };
   // Evaluates up to kBatch entries (unshadowed value + shadow ray), then visibility.
+  template <BatchShape kShape, typename EntryFn>
+  bool BatchDiffuseGeometry(size_t begin, size_t count, EntryFn& entry, uint32_t fixed,
+                            ReceiverBatch* receivers, DiffuseGeometryBatch* geo) const;
   template <typename EntryFn, typename SinkFn, BatchShape kShape = BatchShape::kEntries>
   void EvaluateBatched(size_t n, EntryFn entry, SinkFn sink, MatrixCounters* counters,
                        uint32_t fixed = 0) const;
