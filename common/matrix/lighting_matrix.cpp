@@ -535,8 +535,9 @@ void LightingMatrix::EvaluateBatched(size_t n, EntryFn entry, SinkFn sink,
     for (size_t r = 0; r < nrays; ++r) {
       bool lit = rays[r].tfar >= 0.f;  // occluded: Embree sets tfar = -inf
       if (media && lit) {
-        // Seeded by the element, so an element has the same value whichever method asks.
-        Rng rng(HashSeed({uint64_t(RngStream::kMedium), entry_key[r]}));
+        // Seeded by the job seed and the element: an element has the same value whichever method
+        // asks, and independent passes of a progressive job (other seeds) are independent.
+        Rng rng(HashSeed({uint64_t(RngStream::kMedium), seed_, entry_key[r]}));
         values[r] *= scene_.TransmittanceAlong(origins[r], dirs[r], lengths[r], start_medium[r], rng);
         ++counters->transmittance_evals;
         lit = !values[r].IsBlack();

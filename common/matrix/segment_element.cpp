@@ -21,7 +21,7 @@ RGB LightingMatrix::SegmentElement(uint32_t si, uint32_t col, MatrixCounters* co
   const Medium& med = scene_.media()[seg.medium];
   constexpr int kMaxSamples = 64;
   const int n = std::clamp(segment_samples_, 1, kMaxSamples);
-  Rng rng(HashSeed({uint64_t(RngStream::kMedium), 1, si, col}));
+  Rng rng(HashSeed({uint64_t(RngStream::kMedium), seed_, 1, si, col}));
   const bool directional = L.IsDirectional();
   const float len = seg.length;
   const float st = med.sigma_t().Max();

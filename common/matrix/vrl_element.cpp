@@ -136,7 +136,7 @@ RGB LightingMatrix::VrlPointElement(uint32_t ri, uint32_t col, MatrixCounters* c
   if (L.medium < 0 || !(L.length > 0)) return RGB(0.f);
   const Medium& med = scene_.media()[L.medium];
   const int n = std::clamp(segment_samples_, 1, kMaxVrlSamples);
-  Rng rng(HashSeed({uint64_t(RngStream::kMedium), 2, ri, col}));
+  Rng rng(HashSeed({uint64_t(RngStream::kMedium), seed_, 2, ri, col}));
   const EquiAngular ea(L.p, L.n, L.length, row.p);
   if (!ea.Valid()) return RGB(0.f);
   const std::vector<Material>& materials = scene_.materials();
@@ -194,7 +194,7 @@ RGB LightingMatrix::VrlSegmentElement(uint32_t si, uint32_t col, MatrixCounters*
   const Medium& eye_med = scene_.media()[seg.medium];
   const Medium& light_med = scene_.media()[L.medium];
   const int n = std::clamp(segment_samples_, 1, kMaxVrlSamples);
-  Rng rng(HashSeed({uint64_t(RngStream::kMedium), 3, si, col}));
+  Rng rng(HashSeed({uint64_t(RngStream::kMedium), seed_, 3, si, col}));
   // The floor on the lines' distance: far below the clamp distance and the segments' scale.
   const float h_floor = 1e-4f * std::max({L.length, seg.length, clamp_distance_});
   const InverseDistance vrl_sampler(L.p, L.n, L.length, seg.o, seg.d, h_floor);
