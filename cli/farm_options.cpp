@@ -57,9 +57,26 @@ void WriteFetchedResult(const std::string& exr_path, const std::string& exr_byte
   WriteAtomically(stats_path.empty() ? stem + ".json" : stats_path, stats_json + "\n");
 }
 
+std::string ProgressPhase(const v1::JobStatus& st) {
+  if (!st.progressive()) return st.stage_name();
+  return "pass " + std::to_string(st.passes_done() + 1) + "/" + std::to_string(st.passes_total()) + " " +
+         st.stage_name();
+}
+
 std::string DescribeJob(const v1::JobStatus& st) {
   char buf[512];
   std::string s = "job " + st.job_id() + ": " + JobStateName(st.state());
+  if (st.progressive()) {
+    const bool running = st.state() == v1::JOB_STATE_RUNNING || st.state() == v1::JOB_STATE_PLANNING;
+    std::snprintf(buf, sizeof(buf), ", %s %u/%u", running ? "pass" : "passes", st.passes_done() + (running ? 1 : 0),
+                  st.passes_total());
+    s += buf;
+    if (st.noise_rel_stderr() >= 0) {
+      std::snprintf(buf, sizeof(buf), ", noise %.4f (p90 pixel %.4f)", st.noise_rel_stderr(),
+                    st.noise_p90_rel_stderr());
+      s += buf;
+    }
+  }
   if (st.state() == v1::JOB_STATE_RUNNING) {
     std::snprintf(buf, sizeof(buf), ", stage %d/%d (%s), %llu/%llu tasks", st.stage() + 1,
                   st.stage_count(), st.stage_name().c_str(), (unsigned long long)st.tasks_done(),

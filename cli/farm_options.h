@@ -28,5 +28,7 @@ void WriteFetchedResult(const std::string& exr_path, const std::string& exr_byte
 
 // "job 3: running, stage 1/1 (gather), 5/10 tasks, eta 12.0s"
 std::string DescribeJob(const v1::JobStatus& st);
+// The progress bar's label: the stage, with "pass k/N" for a progressive job.
+std::string ProgressPhase(const v1::JobStatus& st);
 
 }  // namespace lightfarm::cli

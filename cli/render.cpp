@@ -9,6 +9,7 @@
 #include <iostream>
 
 #include "cli/commands.h"
+#include "cli/farm_options.h"
 #include "cli/progress.h"
 #include "cli/render_options.h"
 #include "cli/target_error.h"
@@ -70,7 +71,7 @@ void RunRender(const RenderArgs& a) {
   ProgressBar bar;
   EmbeddedRender out = RenderOnEmbeddedFarm(a.scene, s, a.workers, [&](const v1::JobStatus& st) {
     if (!a.quiet && st.state() == v1::JOB_STATE_RUNNING)
-      bar.Update(st.stage_name(), st.tasks_done(), st.tasks_total());
+      bar.Update(ProgressPhase(st), st.tasks_done(), st.tasks_total());
   });
   bar.Finish();
   // All outputs or none: a failure on a later file (an unwritable --stats) removes the earlier

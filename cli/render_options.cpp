@@ -20,6 +20,17 @@ void AddRenderOptions(CLI::App* cmd, RenderOptionArgs& a) {
   // Without the check CLI11 wraps a negative number into a huge unsigned seed.
   cmd->add_option("--seed", a.seed, "Random seed")->check(CLI::NonNegativeNumber);
   cmd->add_option("--param", a.params, "Method/renderer parameter KEY=VALUE (repeatable)");
+  cmd->add_option("--passes", a.passes,
+                  "Progressive reference: render N passes, each with its own seed, and average them "
+                  "(with --until-noise or --time-limit: at most N; default 10000)")
+      ->check(CLI::Range(1u, 1000000u));
+  cmd->add_option("--until-noise", a.until_noise,
+                  "Progressive reference: stop once the relative standard error of the image mean and of "
+                  "its 90th-percentile pixel are below E (e.g. 0.01; at least 4 passes)")
+      ->check(CLI::Range(1e-9, 10.0));
+  cmd->add_option("--time-limit", a.time_limit_s,
+                  "Progressive reference: stop after the pass running at S seconds")
+      ->check(CLI::Range(1e-3, 1e9));
 }
 
 RenderSettings ToRenderSettings(const RenderOptionArgs& a) {
@@ -42,6 +53,11 @@ RenderSettings ToRenderSettings(const RenderOptionArgs& a) {
   s.lights = a.lights > 0 ? size_t(a.lights) : 10000;
   s.seed = a.seed;
   s.params = a.params;
+  s.progressive.until_noise = a.until_noise;
+  s.progressive.time_limit_s = a.time_limit_s;
+  s.progressive.passes = a.passes > 0 ? a.passes
+                         : a.until_noise > 0 || a.time_limit_s > 0 ? PassPlan::kDefaultMaxPasses
+                                                                    : 1;
   return s;
 }
 

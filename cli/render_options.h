@@ -17,6 +17,10 @@ struct RenderOptionArgs {
   long long lights = 0;  // 0: not given (10000, or a --target-error / auto choice)
   unsigned long long seed = 0;
   std::vector<std::string> params;
+  // A progressive job (progressive.h): 0 / 0 / 0 is one ordinary pass.
+  unsigned passes = 0;
+  double until_noise = 0;
+  double time_limit_s = 0;
 };
 
 void AddRenderOptions(CLI::App* cmd, RenderOptionArgs& args);

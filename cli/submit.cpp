@@ -43,7 +43,7 @@ void RunSubmit(const SubmitArgs& a) {
   if (!a.wait) return;
   ProgressBar bar;
   v1::JobStatus st = client->Watch(job, [&](const v1::JobStatus& s) {
-    if (!a.quiet && s.state() == v1::JOB_STATE_RUNNING) bar.Update(s.stage_name(), s.tasks_done(), s.tasks_total());
+    if (!a.quiet && s.state() == v1::JOB_STATE_RUNNING) bar.Update(ProgressPhase(s), s.tasks_done(), s.tasks_total());
   });
   bar.Finish();
   if (st.state() != v1::JOB_STATE_DONE) throw std::runtime_error(DescribeJob(st));

@@ -42,7 +42,7 @@ void AddWatchCommand(CLI::App& app) {
         std::filesystem::rename(tmp, args->preview);
       }
       if (tty) {
-        if (s.state() == v1::JOB_STATE_RUNNING) bar.Update(s.stage_name(), s.tasks_done(), s.tasks_total());
+        if (s.state() == v1::JOB_STATE_RUNNING) bar.Update(ProgressPhase(s), s.tasks_done(), s.tasks_total());
         return;
       }
       std::string line = DescribeJob(s);

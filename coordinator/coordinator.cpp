@@ -3,6 +3,7 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <random>
 #include <sstream>
@@ -101,6 +102,25 @@ void Coordinator::Start() {
     job.error = r.error;
     job.result_sha = r.result_sha;
     job.stats_json = r.stats_json;
+    job.passes = FromProto(job.settings).progressive;
+    job.pass = r.pass;
+    if (job.passes.progressive()) {
+      PassAccumulator acc;
+      if (!r.accum_sha.empty()) {
+        try {
+          acc = PassAccumulator::Deserialize(blobs_->Get(r.accum_sha));
+        } catch (const std::exception& e) {
+          // Without the accumulation the finished passes cannot be trusted: start over.
+          spdlog::error("job {}: the accumulation of its {} passes is unreadable ({}); restarting at pass 0",
+                        job.id, r.pass, e.what());
+          acc = PassAccumulator();
+          job.pass = 0;
+        }
+      }
+      job.pass = int(acc.passes());
+      job.noise = acc.Noise();
+      job.acc = std::make_shared<const PassAccumulator>(std::move(acc));
+    }
     if (!IsTerminal(job.state)) {
       if (job.state != v1::JOB_STATE_QUEUED)
         spdlog::info("job {}: resuming at stage {}", job.id, job.stage);
@@ -170,6 +190,11 @@ std::string Coordinator::Submit(const v1::SubmitJobRequest& req) {
   if (s.spp() > options_.max_spp)
     throw FarmError(Code::kResourceExhausted, "spp " + std::to_string(s.spp()) + " exceeds the limit of " +
                                                   std::to_string(options_.max_spp));
+  if (!std::isfinite(s.until_noise()) || s.until_noise() < 0 || !std::isfinite(s.time_limit_s()) ||
+      s.time_limit_s() < 0)
+    throw FarmError(Code::kInvalidArgument, "until_noise and time_limit_s must be finite and not negative");
+  if (s.passes() > 1'000'000)
+    throw FarmError(Code::kResourceExhausted, std::to_string(s.passes()) + " passes exceed the limit of 1000000");
   if (s.method_rule().size() > 4096)
     throw FarmError(Code::kInvalidArgument, "method_rule is longer than 4096 bytes");
   try {
@@ -196,6 +221,8 @@ std::string Coordinator::Submit(const v1::SubmitJobRequest& req) {
   job.priority = req.priority();
   job.manifest = m;
   job.settings = s;
+  job.passes = FromProto(s).progressive;
+  if (job.passes.progressive()) job.acc = std::make_shared<const PassAccumulator>();
   const int64_t id = job.id;
   jobs_.emplace(id, std::move(job));
   ++m_submitted_;
@@ -245,7 +272,32 @@ v1::JobStatus Coordinator::StatusLocked(const Job& job) const {
   } else if (job.state == v1::JOB_STATE_DONE) {
     st.set_eta_s(0);
   }
+  if (job.passes.progressive()) ProgressiveStatus(job, &st);
   return st;
+}
+
+void Coordinator::ProgressiveStatus(const Job& job, v1::JobStatus* st) const {
+  const uint32_t done = job.acc ? job.acc->passes() : 0;
+  st->set_progressive(true);
+  st->set_passes_done(done);
+  st->set_passes_total(job.passes.passes);
+  st->set_noise_rel_stderr(std::isfinite(job.noise.rel_stderr) ? job.noise.rel_stderr : -1);
+  st->set_noise_p90_rel_stderr(std::isfinite(job.noise.p90_rel_stderr) ? job.noise.p90_rel_stderr : -1);
+  if (IsTerminal(job.state) || done == 0) return;  // the first pass's ETA is the stage's (above)
+  // Passes left: to the most allowed, or to the noise target at its 1/√N rate; the time limit
+  // caps their time. The running pass has already used some of it.
+  double pass_s = 0;
+  for (double t : job.acc->pass_seconds()) pass_s += t;
+  const double mean_pass_s = pass_s / double(done);
+  double left = double(job.passes.passes - std::min(done, job.passes.passes));
+  if (job.passes.until_noise > 0) {
+    const uint32_t to_target = job.acc->PassesToReach(job.passes.until_noise);
+    const uint32_t floor_left = PassPlan::kMinNoisePasses - std::min(done, PassPlan::kMinNoisePasses);
+    left = std::min(left, double(std::max(to_target == UINT32_MAX ? uint32_t(left) : to_target, floor_left)));
+  }
+  double eta = left * mean_pass_s;
+  if (job.passes.time_limit_s > 0) eta = std::min(eta, std::max(0.0, job.passes.time_limit_s - pass_s) + mean_pass_s);
+  st->set_eta_s(std::max(0.0, eta - Seconds(Clock::now() - job.pass_started)));
 }
 
 v1::JobStatus Coordinator::GetJob(const std::string& job_id) {
@@ -277,7 +329,10 @@ v1::JobStatus Coordinator::Cancel(const std::string& job_id) {
 JobResult Coordinator::GetResult(const std::string& job_id) {
   std::lock_guard lock(mu_);
   Job& job = FindJob(job_id);
-  if (job.state != v1::JOB_STATE_DONE)
+  // A progressive job has a result as soon as one pass is done: the mean of its passes so far,
+  // while it runs and after it is cancelled.
+  const bool partial = job.passes.progressive() && !job.result_sha.empty();
+  if (job.state != v1::JOB_STATE_DONE && !partial)
     throw FarmError(Code::kFailedPrecondition, "job " + job_id + " is " + JobStateName(job.state) +
                                                    (job.error.empty() ? "" : " (" + job.error + ")") +
                                                    ", not done");
@@ -417,7 +472,7 @@ LeaseGrant Coordinator::Lease(const std::string& worker_id) {
   v1::JobContext& ctx = grant.job;
   ctx.set_job_id(std::to_string(job.id));
   *ctx.mutable_scene() = job.manifest;
-  *ctx.mutable_settings() = job.settings;
+  *ctx.mutable_settings() = PassSettings(job);
   ctx.set_clamp(job.clamp);
   ctx.set_lights_sha256(job.lights_sha);
   ctx.set_receivers_sha256(job.receivers_sha);
@@ -570,7 +625,7 @@ void Coordinator::MaybeStartPlanningLocked() {
       if (j.state == v1::JOB_STATE_QUEUED && (!next || j.priority > next->priority)) next = &j;
     if (!next) return;
     next->state = v1::JOB_STATE_PLANNING;
-    next->started = Clock::now();
+    next->started = next->pass_started = Clock::now();
     store_->SetJobState(next->id, next->state, "");
     const int64_t id = next->id;
     planner_->Submit([this, id] { PlanJob(id); });
@@ -587,7 +642,7 @@ void Coordinator::PlanJob(int64_t id) {
     Job& job = jobs_.at(id);
     if (job.state != v1::JOB_STATE_PLANNING) return;  // cancelled meanwhile
     manifest = job.manifest;
-    settings = job.settings;
+    settings = PassSettings(job);
     stage = job.stage;
   }
   PlannedStage planned;
@@ -699,30 +754,77 @@ void Coordinator::AdvanceStage(int64_t id) {
   }
 }
 
+v1::RenderSettings Coordinator::PassSettings(const Job& job) {
+  v1::RenderSettings settings = job.settings;
+  settings.set_seed(PassSeed(job.settings.seed(), uint32_t(job.pass)));
+  return settings;
+}
+
 void Coordinator::FinishJob(int64_t id, std::shared_ptr<Plan> plan, int final_stage) {
   std::vector<Bytes> specs;
   PhaseTimes times;
-  Clock::time_point started;
+  Clock::time_point pass_started;
+  uint64_t job_seed = 0;
   v1::RenderSettings settings;
-  std::string root;
+  std::string root, previous_stats;
+  int pass = 0;
+  PassPlan passes;
+  std::shared_ptr<const PassAccumulator> acc;
   {
     std::lock_guard lock(mu_);
     Job& job = jobs_.at(id);
     for (const Task& t : job.tasks) specs.push_back(t.spec);
     times = job.times;
-    started = job.started;
-    settings = job.settings;
+    pass_started = job.pass_started;
+    job_seed = job.settings.seed();
+    settings = PassSettings(job);
     root = job.manifest.root();
+    pass = job.pass;
+    passes = job.passes;
+    acc = job.acc;
+    previous_stats = job.stats_json;
   }
-  const FinishedJob finished = job_planner_->Finish(id, *plan, settings, root, final_stage, specs, times,
-                                                    Seconds(Clock::now() - started));
+  PassOutcome outcome = job_planner_->AssemblePass(id, *plan, settings, root, final_stage, specs, times,
+                                                   Seconds(Clock::now() - pass_started));
+  FinishedJob finished;
+  if (!passes.progressive()) {
+    finished = job_planner_->Finish(id, std::move(outcome));
+  } else {
+    // The accumulation is copied, so status calls read the published one meanwhile.
+    auto next = std::make_shared<PassAccumulator>(acc ? *acc : PassAccumulator());
+    finished = job_planner_->FinishPass(
+        id, pass, passes, *next, std::move(outcome), Seconds(Clock::now() - pass_started), job_seed,
+        previous_stats.empty() ? nlohmann::json::object() : nlohmann::json::parse(previous_stats));
+    acc = std::move(next);
+  }
   std::lock_guard lock(mu_);
   Job& job = jobs_.at(id);
-  job.state = v1::JOB_STATE_DONE;
   job.result_sha = finished.result_sha;
   job.stats_json = finished.stats_json;
   job.plan.reset();
+  job.preview.reset();
   job.advancing = false;
+  if (passes.progressive()) {
+    job.acc = acc;
+    job.noise = finished.noise;
+    ++job.pass;
+    if (finished.more_passes) {
+      spdlog::info("job {}: pass {} done (noise {:.4f}, p90 {:.4f})", id, pass, finished.noise.rel_stderr,
+                   finished.noise.p90_rel_stderr);
+      if (job.state != v1::JOB_STATE_RUNNING) return;  // cancelled meanwhile: the passes so far are its result
+      // The next pass keeps the job's slot: planned at once, its tasks from stage 0.
+      job.state = v1::JOB_STATE_PLANNING;
+      job.stage = 0;
+      job.tasks.clear();
+      job.tasks_done = job.done_at_stage_start = 0;
+      job.times = PhaseTimes();
+      job.pass_started = Clock::now();
+      store_->SetJobState(id, job.state, "");
+      planner_->Submit([this, id] { PlanJob(id); });
+      return;
+    }
+  }
+  job.state = v1::JOB_STATE_DONE;
   spdlog::info("job {}: done ({} tasks, {} attempts)", id, finished.tasks, finished.attempts);
   MaybeStartPlanningLocked();
 }

@@ -147,6 +147,13 @@ class Coordinator {
     bool advancing = false;
     std::string result_sha, stats_json;
     std::shared_ptr<const JobPreview> preview;  // the latest one computed
+    // Progressive jobs (progressive.h): the pass running, the finished ones accumulated, and
+    // their noise (computed once per pass, not per status call).
+    PassPlan passes;
+    int pass = 0;
+    std::shared_ptr<const PassAccumulator> acc;
+    NoiseEstimate noise;
+    Clock::time_point pass_started;
   };
   struct LeaseRef {
     int64_t job;
@@ -157,6 +164,7 @@ class Coordinator {
 
   Job& FindJob(const std::string& job_id);  // throws NOT_FOUND; caller holds mu_
   v1::JobStatus StatusLocked(const Job& job) const;
+  void ProgressiveStatus(const Job& job, v1::JobStatus* st) const;
   static bool ParseLease(const std::string& lease_id, LeaseRef* ref);
   Task* FindTaskLocked(const LeaseRef& ref, Job** job);
   // Worker calls on a lease: NOT_FOUND for a worker or job the coordinator does not know,
@@ -172,6 +180,8 @@ class Coordinator {
   void FinishJob(int64_t id, std::shared_ptr<Plan> plan, int stage);
   void TickLoop();
   static std::vector<Task> MakeTasks(const std::vector<SubMatrixTask>& specs);
+  // The settings a job's current pass renders with: the job's, seeded PassSeed(seed, pass).
+  static v1::RenderSettings PassSettings(const Job& job);
 
   CoordinatorOptions options_;
   std::unique_ptr<JobStore> store_;

@@ -9,9 +9,7 @@
 
 namespace lightfarm {
 
-Bytes WriteResultExr(const Plan& plan, const GatherOutcome& outcome, const std::string& path,
-                     uint64_t* nan_samples) {
-  const Image image = AssembleImage(plan, outcome, nan_samples);
+Bytes WriteResultExr(const Image& image, const std::string& path) {
   std::filesystem::create_directories(std::filesystem::path(path).parent_path());
   WriteEXR(path, image);
   const std::string bytes = ReadFile(path);

@@ -20,9 +20,8 @@ struct JobPreview {
   static constexpr int kMaxSide = 256;
 };
 
-// The image of a finished job's outcome, written as an EXR at `path`; returns the file's bytes.
-Bytes WriteResultExr(const Plan& plan, const GatherOutcome& outcome, const std::string& path,
-                     uint64_t* nan_samples);
+// A job's result image written as an EXR at `path`; returns the file's bytes.
+Bytes WriteResultExr(const Image& image, const std::string& path);
 
 // The finished final-stage tiles (task order; the other pixels black), shrunk to at most
 // JobPreview::kMaxSide pixels a side, written as a PNG at `path`.

@@ -1,6 +1,7 @@
 #include "coordinator/job_planner.h"
 
 #include <chrono>
+#include <cmath>
 #include <filesystem>
 #include <stdexcept>
 
@@ -90,13 +91,14 @@ NextStage JobPlanner::CombineStage(int64_t id, const Plan& plan, int stage,
   return next;
 }
 
-FinishedJob JobPlanner::Finish(int64_t id, const Plan& plan, const v1::RenderSettings& settings,
-                               const std::string& root, int final_stage, const std::vector<Bytes>& final_specs,
-                               PhaseTimes times, double total_seconds) {
+PassOutcome JobPlanner::AssemblePass(int64_t id, const Plan& plan, const v1::RenderSettings& settings,
+                                     const std::string& root, int final_stage,
+                                     const std::vector<Bytes>& final_specs, PhaseTimes times,
+                                     double total_seconds) {
   const auto t_film = std::chrono::steady_clock::now();
   // Every stage's outputs in (stage, task) order (the store's), as the stage engine requires.
   StageEngine engine(plan);
-  FinishedJob out;
+  PassOutcome out;
   for (const TaskRecord& r : store_.LoadAllTasks(id)) {
     out.attempts += uint64_t(r.attempts);
     ++out.tasks;
@@ -108,16 +110,78 @@ FinishedJob JobPlanner::Finish(int64_t id, const Plan& plan, const v1::RenderSet
       engine.AddFinal(DeserializeTask(final_specs.at(size_t(r.task_id))), task_output);
   }
   uint64_t nan_samples = 0;
-  out.result_sha = blobs_.Put(WriteResultExr(plan, engine.outcome(), JobDir(id) + "/result.exr", &nan_samples));
+  out.image = AssembleImage(plan, engine.outcome(), &nan_samples);
   times.Add("film", SecondsSince(t_film));
-  nlohmann::json stats = MakeStats(plan, FromProto(settings), engine.outcome(), nan_samples, times,
-                                   total_seconds + SecondsSince(t_film));
-  stats["scene"] = root;
-  stats["farm"] = {{"job_id", std::to_string(id)}, {"attempts", out.attempts}, {"tasks", out.tasks}};
-  out.stats_json = stats.dump(2);
+  out.stats = MakeStats(plan, FromProto(settings), engine.outcome(), nan_samples, times,
+                        total_seconds + SecondsSince(t_film));
+  out.stats["scene"] = root;
+  out.stats["farm"] = {{"job_id", std::to_string(id)}, {"attempts", out.attempts}, {"tasks", out.tasks}};
+  return out;
+}
+
+FinishedJob JobPlanner::Finish(int64_t id, PassOutcome pass) {
+  FinishedJob out;
+  out.tasks = pass.tasks;
+  out.attempts = pass.attempts;
+  out.result_sha = blobs_.Put(WriteResultExr(pass.image, JobDir(id) + "/result.exr"));
+  out.stats_json = pass.stats.dump(2);
   store_.FinishJob(id, v1::JOB_STATE_DONE, out.result_sha, out.stats_json);
   std::error_code ec;
   fs::remove_all(JobDir(id) + "/scene", ec);
+  return out;
+}
+
+namespace {
+
+// JSON has no infinity: an estimate not yet made (fewer than two passes) is null.
+nlohmann::json Finite(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
+
+}  // namespace
+
+FinishedJob JobPlanner::FinishPass(int64_t id, int pass, const PassPlan& passes, PassAccumulator& acc,
+                                   PassOutcome outcome, double pass_seconds, uint64_t job_seed,
+                                   const nlohmann::json& previous_stats) {
+  if (int(acc.passes()) != pass)
+    throw std::runtime_error("pass " + std::to_string(pass) + " finished with " + std::to_string(acc.passes()) +
+                             " passes accumulated");
+  acc.Add(outcome.image, pass_seconds);
+  double elapsed = 0;
+  for (double t : acc.pass_seconds()) elapsed += t;
+  FinishedJob out;
+  out.more_passes = WantsAnotherPass(passes, acc, elapsed);
+  out.noise = acc.Noise();
+  // The farm's totals are over every pass: the earlier ones are in the previous result's stats.
+  out.tasks = outcome.tasks;
+  out.attempts = outcome.attempts;
+  if (previous_stats.contains("farm")) {
+    out.tasks += previous_stats["farm"].value("tasks", uint64_t(0));
+    out.attempts += previous_stats["farm"].value("attempts", uint64_t(0));
+  }
+  nlohmann::json stats = std::move(outcome.stats);
+  stats["farm"]["tasks"] = out.tasks;
+  stats["farm"]["attempts"] = out.attempts;
+  stats["seed"] = job_seed;  // MakeStats wrote the pass's seed
+  stats["passes"] = acc.passes();
+  stats["noise"] = {{"rel_stderr", Finite(out.noise.rel_stderr)},
+                    {"p90_rel_stderr", Finite(out.noise.p90_rel_stderr)}};
+  stats["pass_times_s"] = acc.pass_seconds();
+  stats["progressive"] = {{"max_passes", passes.passes},
+                          {"until_noise", passes.until_noise},
+                          {"time_limit_s", passes.time_limit_s},
+                          {"elapsed_s", elapsed},
+                          {"finished", !out.more_passes}};
+  stats["time"]["total_s"] = elapsed;
+  out.stats_json = stats.dump(2);
+  out.result_sha = blobs_.Put(WriteResultExr(acc.Mean(), JobDir(id) + "/result.exr"));
+  const std::string accum_sha = blobs_.Put(acc.Serialize());
+  // The finished pass, its accumulation and the result are recorded in one step before the next
+  // pass starts: a restarted coordinator resumes at the next pass with every finished one.
+  store_.FinishPass(id, pass + 1, accum_sha, out.result_sha, out.stats_json);
+  if (!out.more_passes) {
+    store_.FinishJob(id, v1::JOB_STATE_DONE, out.result_sha, out.stats_json);
+    std::error_code ec;
+    fs::remove_all(JobDir(id) + "/scene", ec);
+  }
   return out;
 }
 

@@ -41,9 +41,18 @@ struct NextStage {
   std::vector<SubMatrixTask> specs;
 };
 
+// One finished render (a job, or a pass of a progressive job): its image and stats.
+struct PassOutcome {
+  Image image;
+  nlohmann::json stats;
+  uint64_t tasks = 0, attempts = 0;
+};
+
 struct FinishedJob {
   std::string result_sha, stats_json;
   uint64_t tasks = 0, attempts = 0;
+  bool more_passes = false;  // a progressive job goes on with its next pass
+  NoiseEstimate noise;
 };
 
 class JobPlanner {
@@ -58,11 +67,17 @@ class JobPlanner {
   // Stage `stage`'s results (task order) combined into the next stage's input, stored first so
   // that a restarted coordinator resumes from it; the next stage's task rows are created.
   NextStage CombineStage(int64_t id, const Plan& plan, int stage, const std::vector<std::string>& result_shas);
-  // Every stage's outputs (the store's order) into the film, the result EXR and the stats; the
-  // job is recorded as done and its scene directory removed.
-  FinishedJob Finish(int64_t id, const Plan& plan, const v1::RenderSettings& settings, const std::string& root,
-                     int final_stage, const std::vector<Bytes>& final_specs, PhaseTimes times,
-                     double total_seconds);
+  // Every stage's outputs (the store's order) into the film and the stats.
+  PassOutcome AssemblePass(int64_t id, const Plan& plan, const v1::RenderSettings& settings,
+                           const std::string& root, int final_stage, const std::vector<Bytes>& final_specs,
+                           PhaseTimes times, double total_seconds);
+  // An ordinary job's result: the EXR and the stats recorded, the job done, its scene removed.
+  FinishedJob Finish(int64_t id, PassOutcome pass);
+  // A progressive job's pass: added to `acc` (pass `pass`, in pass order), the mean of the
+  // passes so far recorded as the job's result, and either the next pass readied (its tasks
+  // start from stage 0) or the job done. The time limit counts the passes' own times (so a restart does not reset it).
+  FinishedJob FinishPass(int64_t id, int pass, const PassPlan& passes, PassAccumulator& acc, PassOutcome outcome,
+                         double pass_seconds, uint64_t job_seed, const nlohmann::json& previous_stats);
   // The preview of the finished tiles: (task spec, result blob) pairs of the final stage.
   JobPreview Preview(int64_t id, const Plan& plan, const std::vector<std::pair<Bytes, std::string>>& done);
 

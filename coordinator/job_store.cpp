@@ -70,7 +70,18 @@ JobStore::JobStore(const std::string& path) {
   Exec(R"(CREATE TABLE IF NOT EXISTS jobs(
           id INTEGER PRIMARY KEY AUTOINCREMENT, name TEXT, priority INTEGER, state INTEGER,
           manifest BLOB, settings BLOB, stage INTEGER DEFAULT 0, error TEXT DEFAULT '',
-          created REAL, finished REAL, result_sha TEXT DEFAULT '', stats_json TEXT DEFAULT ''))");
+          created REAL, finished REAL, result_sha TEXT DEFAULT '', stats_json TEXT DEFAULT '',
+          pass INTEGER DEFAULT 0, accum_sha TEXT DEFAULT ''))");
+  // State directories from before progressive jobs: the pass columns are added.
+  {
+    bool has_pass = false;
+    Stmt columns(db_, "PRAGMA table_info(jobs)");
+    while (columns.Step()) has_pass |= columns.Str(1) == "pass";
+    if (!has_pass) {
+      Exec("ALTER TABLE jobs ADD COLUMN pass INTEGER DEFAULT 0");
+      Exec("ALTER TABLE jobs ADD COLUMN accum_sha TEXT DEFAULT ''");
+    }
+  }
   Exec(R"(CREATE TABLE IF NOT EXISTS stages(
           job_id INTEGER, stage INTEGER, artifact_sha TEXT, PRIMARY KEY(job_id, stage)))");
   Exec(R"(CREATE TABLE IF NOT EXISTS tasks(
@@ -118,6 +129,22 @@ void JobStore::FinishJob(int64_t id, int state, const std::string& result_sha,
   std::lock_guard lock(mu_);
   Stmt(db_, "UPDATE jobs SET state = ?, result_sha = ?, stats_json = ?, finished = ? WHERE id = ?")
       .Bind(state).Bind(result_sha).Bind(stats_json).Bind(Now()).Bind(id).Step();
+}
+
+void JobStore::FinishPass(int64_t id, int next_pass, const std::string& accum_sha,
+                          const std::string& result_sha, const std::string& stats_json) {
+  std::lock_guard lock(mu_);
+  Exec("BEGIN");
+  try {
+    Stmt(db_, "UPDATE jobs SET pass = ?, stage = 0, accum_sha = ?, result_sha = ?, stats_json = ? WHERE id = ?")
+        .Bind(next_pass).Bind(accum_sha).Bind(result_sha).Bind(stats_json).Bind(id).Step();
+    Stmt(db_, "DELETE FROM tasks WHERE job_id = ?").Bind(id).Step();
+    Stmt(db_, "DELETE FROM stages WHERE job_id = ?").Bind(id).Step();
+    Exec("COMMIT");
+  } catch (...) {
+    Exec("ROLLBACK");
+    throw;
+  }
 }
 
 void JobStore::SetArtifact(int64_t id, int stage, const std::string& sha) {
@@ -205,7 +232,7 @@ void JobStore::EndAttempt(int64_t attempt, const std::string& outcome) {
 std::vector<JobRecord> JobStore::LoadJobs() {
   std::lock_guard lock(mu_);
   Stmt s(db_, "SELECT id, name, priority, state, manifest, settings, stage, error, created, "
-              "result_sha, stats_json FROM jobs ORDER BY id");
+              "result_sha, stats_json, pass, accum_sha FROM jobs ORDER BY id");
   std::vector<JobRecord> out;
   while (s.Step()) {
     JobRecord j;
@@ -220,6 +247,8 @@ std::vector<JobRecord> JobStore::LoadJobs() {
     j.created = s.Real(8);
     j.result_sha = s.Str(9);
     j.stats_json = s.Str(10);
+    j.pass = int(s.Int(11));
+    j.accum_sha = s.Str(12);
     out.push_back(std::move(j));
   }
   return out;

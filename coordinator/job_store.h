@@ -26,7 +26,9 @@ struct JobRecord {
   int stage = 0;
   std::string error;
   double created = 0;       // unix seconds
-  std::string result_sha, stats_json;
+  std::string result_sha, stats_json;  // a running progressive job: its passes so far
+  int pass = 0;             // progressive jobs: the pass running (= passes finished)
+  std::string accum_sha;    // progressive jobs: the PassAccumulator blob of the finished passes
 };
 
 struct TaskRecord {
@@ -50,6 +52,10 @@ class JobStore {
   void SetJobState(int64_t id, int state, const std::string& error);
   void SetJobStage(int64_t id, int stage);
   void FinishJob(int64_t id, int state, const std::string& result_sha, const std::string& stats_json);
+  // A progressive job's pass finished: its accumulation and current result are recorded, and
+  // the finished pass's tasks and artifacts give way to pass `next_pass`, stage 0 (one transaction).
+  void FinishPass(int64_t id, int next_pass, const std::string& accum_sha, const std::string& result_sha,
+                  const std::string& stats_json);
   void SetArtifact(int64_t id, int stage, const std::string& sha);
   std::map<int, std::string> Artifacts(int64_t id);
 

@@ -13,6 +13,11 @@ v1::RenderSettings ToProto(const RenderSettings& s) {
   p.set_seed(s.seed);
   for (const std::string& kv : s.params) p.add_params(kv);
   p.set_method_rule(s.method_rule);
+  if (s.progressive.progressive()) {
+    p.set_passes(s.progressive.passes);
+    p.set_until_noise(s.progressive.until_noise);
+    p.set_time_limit_s(s.progressive.time_limit_s);
+  }
   return p;
 }
 
@@ -27,6 +32,11 @@ RenderSettings FromProto(const v1::RenderSettings& p) {
   s.seed = p.seed();
   s.params.assign(p.params().begin(), p.params().end());
   s.method_rule = p.method_rule();
+  s.progressive.until_noise = p.until_noise();
+  s.progressive.time_limit_s = p.time_limit_s();
+  s.progressive.passes = p.passes() > 0 ? p.passes()
+                         : p.until_noise() > 0 || p.time_limit_s() > 0 ? PassPlan::kDefaultMaxPasses
+                                                                        : 1;
   return s;
 }
 

@@ -11,6 +11,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "common/farm/progressive.h"
 #include "common/gather/gather.h"
 #include "common/image/image.h"
 #include "common/lights/virtual_light.h"
@@ -31,6 +32,9 @@ struct RenderSettings {
   // Why the client chose `method` when it resolved `auto` itself (a bench model against the
   // truth): reported as the stats' method_rule.
   std::string method_rule;
+  // A progressive job's passes (progressive.h): the farm runs each with PassSeed(seed, pass).
+  // Everything else here renders one pass.
+  PassPlan progressive;
 };
 
 // Everything a gather needs, built once per job (deterministic in the job seed).
