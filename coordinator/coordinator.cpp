@@ -344,24 +344,35 @@ JobResult Coordinator::GetResult(const std::string& job_id) {
 bool Coordinator::Preview(const std::string& job_id, uint64_t have_tiles, JobPreview* out) {
   std::lock_guard compute(preview_mu_);
   std::shared_ptr<Plan> plan;
+  std::shared_ptr<const PassAccumulator> acc;
   std::vector<std::pair<Bytes, std::string>> done;  // (task spec, result blob) of finished tiles
   int64_t id = 0;
+  uint64_t version = 0;
   {
     std::lock_guard lock(mu_);
     Job& job = FindJob(job_id);
-    if (job.state != v1::JOB_STATE_RUNNING || job.stage + 1 != job.stage_count || !job.plan) return false;
-    if (job.tasks_done <= have_tiles) return false;
-    if (job.preview && job.preview->tiles == job.tasks_done) {
+    if (IsTerminal(job.state)) return false;
+    if (job.acc && job.acc->passes() > 0) {
+      // A progressive job with finished passes shows their mean: a new preview per pass.
+      version = uint64_t(job.acc->passes()) << 32;
+      acc = job.acc;
+    } else {
+      if (job.state != v1::JOB_STATE_RUNNING || job.stage + 1 != job.stage_count || !job.plan) return false;
+      version = job.tasks_done;
+      plan = job.plan;
+      for (const Task& t : job.tasks)
+        if (t.state == TaskStateCode::kDone) done.emplace_back(t.spec, t.result_sha);
+    }
+    if (version <= have_tiles) return false;
+    if (job.preview && job.preview->tiles == version) {
       *out = *job.preview;
       return true;
     }
-    plan = job.plan;
     id = job.id;
-    for (const Task& t : job.tasks)
-      if (t.state == TaskStateCode::kDone) done.emplace_back(t.spec, t.result_sha);
   }
   // Assembled outside the lock.
-  auto preview = std::make_shared<JobPreview>(job_planner_->Preview(id, *plan, done));
+  auto preview = std::make_shared<JobPreview>(acc ? job_planner_->Preview(id, acc->Mean(), version)
+                                                  : job_planner_->Preview(id, *plan, done));
   {
     std::lock_guard lock(mu_);
     auto it = jobs_.find(id);

@@ -193,4 +193,8 @@ JobPreview JobPlanner::Preview(int64_t id, const Plan& plan,
   return MakePreview(plan, tiles, JobDir(id) + "/preview.png");
 }
 
+JobPreview JobPlanner::Preview(int64_t id, Image mean, uint64_t version) {
+  return MakePreview(std::move(mean), version, JobDir(id) + "/preview.png");
+}
+
 }  // namespace lightfarm

@@ -80,6 +80,8 @@ class JobPlanner {
                          double pass_seconds, uint64_t job_seed, const nlohmann::json& previous_stats);
   // The preview of the finished tiles: (task spec, result blob) pairs of the final stage.
   JobPreview Preview(int64_t id, const Plan& plan, const std::vector<std::pair<Bytes, std::string>>& done);
+  // The preview of a progressive job's mean so far.
+  JobPreview Preview(int64_t id, Image mean, uint64_t version);
 
  private:
   std::string JobDir(int64_t id) const { return state_dir_ + "/jobs/" + std::to_string(id); }

@@ -164,9 +164,11 @@ TEST(VrlElements, VrlToSurfacePointMatchesQuadrature) {
     const MeanAndError got = MeanOverRows(m, copies, &counters);
     const double expect = PointQuadrature(f.lights.lights[0], double(m.clamp_distance()));
     EXPECT_GT(expect, 0.0);
-    // Within 4 standard errors of the mean (measured: 0.2–0.6% of the value with 8192 rows ×
-    // 16 samples), and the estimate is that precise: a bias above ~3% cannot pass.
-    EXPECT_NEAR(got.mean, expect, 4 * got.error)
+    // Within 4 standard errors of the mean (measured: 0.01–0.6% of the value with 8192 rows ×
+    // 16 samples) plus 0.1% for the estimator's float arithmetic against the double quadrature
+    // (the backward-phase case's stratified samples are precise enough to show a 0.06% offset),
+    // and the estimate is that precise: a bias above ~3% cannot pass.
+    EXPECT_NEAR(got.mean, expect, 4 * got.error + 1e-3 * expect)
         << "got " << got.mean << " ± " << got.error << " expected " << expect;
     EXPECT_LT(got.error, 0.0075 * expect) << got.error;
     // Every sample's shadow segment is attenuated (generalized visibility).
@@ -244,9 +246,11 @@ TEST(VrlElements, VrlToEyeSegmentMatchesQuadrature) {
     const MeanAndError got = MeanOverRows(m, copies, &counters);
     const double expect = SegmentQuadrature(seg, f.lights.lights[0], double(m.clamp_distance()));
     EXPECT_GT(expect, 0.0);
-    // Within 4 standard errors of the mean (measured: 0.2–0.6% of the value with 8192 rows ×
-    // 16 samples), and the estimate is that precise: a bias above ~3% cannot pass.
-    EXPECT_NEAR(got.mean, expect, 4 * got.error)
+    // Within 4 standard errors of the mean (measured: 0.01–0.6% of the value with 8192 rows ×
+    // 16 samples) plus 0.1% for the estimator's float arithmetic against the double quadrature
+    // (the backward-phase case's stratified samples are precise enough to show a 0.06% offset),
+    // and the estimate is that precise: a bias above ~3% cannot pass.
+    EXPECT_NEAR(got.mean, expect, 4 * got.error + 1e-3 * expect)
         << "got " << got.mean << " ± " << got.error << " expected " << expect;
     EXPECT_LT(got.error, 0.0075 * expect) << got.error;
     EXPECT_GT(counters.transmittance_evals, 0u);
