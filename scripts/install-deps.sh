@@ -16,6 +16,9 @@ packages=(
   # tests, benchmarks, reports
   libgtest-dev libgmock-dev libbenchmark-dev gnuplot-nox
 )
+# Only the full suite needs these: the Slurm recipes' test starts a single-node Slurm. A build of
+# chosen targets (LIGHTFARM_TARGETS, as render-example.sh does) skips them.
+[ -n "${LIGHTFARM_TARGETS:-}" ] || packages+=(slurm-wlm munge)
 
 missing=()
 for p in "${packages[@]}"; do

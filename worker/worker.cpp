@@ -258,6 +258,7 @@ bool Worker::RunOneTask() {
   }
   if (!lease.has_task()) return false;
   if (lease.lease_timeout_ms() > 0) lease_timeout_ms_ = lease.lease_timeout_ms();
+  spdlog::debug("leased {} (job {})", lease.lease_id(), lease.job().job_id());
 
   LeasedTask leased;
   try {

@@ -1,0 +1,82 @@
+#!/usr/bin/env bash
+# A real single-node Slurm on this machine for the deploy/slurm recipes: munged, slurmctld and
+# slurmd on localhost with a configuration generated here, in a private directory (no system
+# files touched, no systemd). Sourced by the Slurm test; after `slurm_start DIR`, sbatch, squeue,
+# scancel and sinfo talk to it (SLURM_CONF), and `slurm_stop` ends every daemon it started.
+# Needs root (slurmd runs jobs as their users) and Debian's slurm-wlm and munge.
+
+slurm_free_port() { python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])'; }
+
+slurm_start() {
+  local dir=$1
+  [ "$(id -u)" -eq 0 ] || { echo "single-node Slurm: needs root (slurmd starts job steps as their users)" >&2; return 1; }
+  for tool in munged mungekey slurmctld slurmd sbatch squeue scancel sinfo; do
+    command -v "$tool" >/dev/null || { echo "single-node Slurm: $tool not found (install slurm-wlm and munge)" >&2; return 1; }
+  done
+  SLURM_DIR=$dir
+  mkdir -p "$dir/state" "$dir/spool" "$dir/munge"
+  chmod 700 "$dir/munge"
+  mungekey --create --keyfile="$dir/munge/munge.key"
+  chmod 400 "$dir/munge/munge.key"
+  munged --force --key-file="$dir/munge/munge.key" --socket="$dir/munge/munge.socket" \
+    --pid-file="$dir/munge/munged.pid" --log-file="$dir/munge/munged.log" --seed-file="$dir/munge/munged.seed"
+  local host ctld_port slurmd_port
+  host=$(hostname -s)
+  ctld_port=$(slurm_free_port)
+  slurmd_port=$(slurm_free_port)
+  # The node offers more CPUs than the machine has (config_overrides): the farm allocation and a
+  # worker array must run side by side on two cores, as they would on separate nodes.
+  cat >"$dir/slurm.conf" <<CONF
+ClusterName=lightfarm-test
+SlurmctldHost=$host(127.0.0.1)
+SlurmctldPort=$ctld_port
+SlurmdPort=$slurmd_port
+SlurmUser=root
+SlurmdUser=root
+AuthType=auth/munge
+AuthInfo=socket=$dir/munge/munge.socket
+CredType=cred/munge
+StateSaveLocation=$dir/state
+SlurmdSpoolDir=$dir/spool
+SlurmctldPidFile=$dir/slurmctld.pid
+SlurmdPidFile=$dir/slurmd.pid
+SlurmctldLogFile=$dir/slurmctld.log
+SlurmdLogFile=$dir/slurmd.log
+ProctrackType=proctrack/linuxproc
+TaskPlugin=task/none
+JobAcctGatherType=jobacct_gather/none
+AccountingStorageType=accounting_storage/none
+MpiDefault=none
+SchedulerType=sched/backfill
+SelectType=select/cons_tres
+SelectTypeParameters=CR_CPU
+SlurmdParameters=config_overrides
+ReturnToService=2
+KillWait=10
+NodeName=$host NodeAddr=127.0.0.1 CPUs=8 RealMemory=4000 State=UNKNOWN
+PartitionName=test Nodes=$host Default=YES MaxTime=INFINITE State=UP
+CONF
+  export SLURM_CONF=$dir/slurm.conf
+  slurmctld -i
+  slurmd
+  local _
+  for _ in $(seq 60); do
+    if sinfo -h -o %T 2>/dev/null | grep -qx idle; then return 0; fi
+    sleep 1
+  done
+  echo "single-node Slurm: the node did not become idle" >&2
+  sinfo >&2 || true
+  tail -20 "$dir/slurmctld.log" "$dir/slurmd.log" >&2 || true
+  return 1
+}
+
+slurm_stop() {
+  local dir=${SLURM_DIR:-}
+  [ -n "$dir" ] || return 0
+  scancel --user=root >/dev/null 2>&1 || true
+  for pidfile in "$dir/slurmd.pid" "$dir/slurmctld.pid"; do
+    [ -f "$pidfile" ] && kill "$(cat "$pidfile")" 2>/dev/null || true
+  done
+  sleep 1
+  munged --stop --socket="$dir/munge/munge.socket" >/dev/null 2>&1 || true
+}
