@@ -16,9 +16,10 @@ packages=(
   # tests, benchmarks, reports
   libgtest-dev libgmock-dev libbenchmark-dev gnuplot-nox
 )
-# Only the full suite needs these: the Slurm recipes' test starts a single-node Slurm. A build of
+# Only the full suite needs these: the Slurm recipes' test starts a single-node Slurm, the
+# Kubernetes manifests' test reads YAML and probes gRPC health from Python. A build of
 # chosen targets (LIGHTFARM_TARGETS, as render-example.sh does) skips them.
-[ -n "${LIGHTFARM_TARGETS:-}" ] || packages+=(slurm-wlm munge)
+[ -n "${LIGHTFARM_TARGETS:-}" ] || packages+=(slurm-wlm munge python3-yaml python3-grpcio)
 
 missing=()
 for p in "${packages[@]}"; do
