@@ -458,12 +458,14 @@ LeaseGrant Coordinator::Lease(const std::string& worker_id) {
     if (best && job.priority <= best->priority) continue;
     auto wf = job.worker_failures.find(worker_id);
     if (wf != job.worker_failures.end() && wf->second >= options_.max_attempts) continue;
-    for (size_t t = 0; t < job.tasks.size(); ++t)
-      if (job.tasks[t].state == TaskStateCode::kPending) {
-        best = &job;
-        best_task = t;
-        break;
-      }
+    // Tasks before the cursor are not pending (a task that becomes pending again moves it back):
+    // a lease costs O(1) amortized however many tasks the stage has.
+    while (job.next_pending < job.tasks.size() && job.tasks[job.next_pending].state != TaskStateCode::kPending)
+      ++job.next_pending;
+    if (job.next_pending < job.tasks.size()) {
+      best = &job;
+      best_task = job.next_pending;
+    }
   }
   if (!best) return grant;
   Job& job = *best;
@@ -473,9 +475,9 @@ LeaseGrant Coordinator::Lease(const std::string& worker_id) {
   task.expiry = Clock::now() + std::chrono::milliseconds(lease_timeout_ms());
   ++task.attempts;
   ++job.attempts_total;
-  task.attempt_row = store_->BeginAttempt(job.id, job.stage, int(best_task), worker_id);
-  store_->UpdateTask(job.id, TaskRecord{job.stage, int(best_task), int(task.state), task.attempts,
-                                        task.failures, task.result_sha, task.last_error});
+  task.attempt_row = store_->RecordLease(job.id, TaskRecord{job.stage, int(best_task), int(task.state), task.attempts,
+                                                            task.failures, task.result_sha, task.last_error},
+                                         worker_id);
   ++m_leases_;
   grant.has_task = true;
   grant.lease_id = std::to_string(job.id) + "." + std::to_string(job.stage) + "." +
@@ -563,9 +565,10 @@ bool Coordinator::Complete(const std::string& worker_id, const std::string& leas
   task->state = TaskStateCode::kDone;
   task->result_sha = sha;
   task->worker = worker_id;
-  store_->UpdateTask(job->id, TaskRecord{job->stage, int(ref.task), int(task->state), task->attempts,
-                                         task->failures, sha, task->last_error});
-  if (task->attempt_row) store_->EndAttempt(task->attempt_row, "done");
+  store_->RecordCompletion(job->id,
+                          TaskRecord{job->stage, int(ref.task), int(task->state), task->attempts, task->failures,
+                                     sha, task->last_error},
+                          task->attempt_row);
   ++job->tasks_done;
   ++job->completions_total;
   ++m_completed_;
@@ -588,6 +591,7 @@ void Coordinator::Fail(const std::string& worker_id, const std::string& lease_id
   if (!task || task->state != TaskStateCode::kLeased || task->worker != worker_id) return;
   if (hand_back) {
     task->state = TaskStateCode::kPending;
+    job->next_pending = std::min<size_t>(job->next_pending, ref.task);
     if (task->attempt_row) store_->EndAttempt(task->attempt_row, "handed back: " + reason);
     return;
   }
@@ -601,6 +605,7 @@ void Coordinator::RecordFailureLocked(Job& job, uint32_t task_id, const std::str
   ++task.failures;
   task.last_error = reason;
   task.state = TaskStateCode::kPending;
+  job.next_pending = std::min<size_t>(job.next_pending, task_id);
   if (task.attempt_row) store_->EndAttempt(task.attempt_row, "failed: " + reason);
   store_->UpdateTask(job.id, TaskRecord{job.stage, int(task_id), int(task.state), task.attempts,
                                         task.failures, task.result_sha, task.last_error});
@@ -696,6 +701,7 @@ void Coordinator::PlanJob(int64_t id) {
   job.stage_count = engine.stage_count();
   job.stage_name = engine.stage_name(stage);
   job.tasks = std::move(tasks);
+  job.next_pending = 0;
   job.tasks_done = 0;
   for (const Task& t : job.tasks) job.tasks_done += t.state == TaskStateCode::kDone;
   job.done_at_stage_start = job.tasks_done;
@@ -750,6 +756,7 @@ void Coordinator::AdvanceStage(int64_t id) {
     job.stage_name = engine.stage_name(job.stage);
     job.artifact_sha = next.artifact_sha;
     job.tasks = MakeTasks(next.specs);
+    job.next_pending = 0;
     job.tasks_done = 0;
     job.done_at_stage_start = 0;
     job.stage_started = Clock::now();
@@ -827,6 +834,7 @@ void Coordinator::FinishJob(int64_t id, std::shared_ptr<Plan> plan, int final_st
       job.state = v1::JOB_STATE_PLANNING;
       job.stage = 0;
       job.tasks.clear();
+      job.next_pending = 0;
       job.tasks_done = job.done_at_stage_start = 0;
       job.times = PhaseTimes();
       job.pass_started = Clock::now();

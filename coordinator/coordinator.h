@@ -134,6 +134,7 @@ class Coordinator {
     int stage = 0, stage_count = 1;
     std::string stage_name;
     std::vector<Task> tasks;  // of the current stage
+    size_t next_pending = 0;  // no task before it is pending
     size_t tasks_done = 0;
     std::shared_ptr<Plan> plan;
     PhaseTimes times;

@@ -20,7 +20,16 @@ class Stmt {
     if (sqlite3_prepare_v2(db, sql, -1, &st_, nullptr) != SQLITE_OK)
       throw std::runtime_error(std::string("sqlite prepare: ") + sqlite3_errmsg(db));
   }
-  ~Stmt() { sqlite3_finalize(st_); }
+  // A statement prepared once and kept (the hot path's): reset for reuse instead of finalized.
+  Stmt(sqlite3* db, sqlite3_stmt* prepared) : db_(db), st_(prepared), cached_(true) {}
+  ~Stmt() {
+    if (cached_) {
+      sqlite3_reset(st_);
+      sqlite3_clear_bindings(st_);
+    } else {
+      sqlite3_finalize(st_);
+    }
+  }
   Stmt& Bind(int64_t v) { Check(sqlite3_bind_int64(st_, ++n_, v)); return *this; }
   Stmt& Bind(int v) { return Bind(int64_t(v)); }
   Stmt& Bind(double v) { Check(sqlite3_bind_double(st_, ++n_, v)); return *this; }
@@ -52,6 +61,7 @@ class Stmt {
   }
   sqlite3* db_;
   sqlite3_stmt* st_ = nullptr;
+  bool cached_ = false;
   int n_ = 0;
 };
 
@@ -95,7 +105,60 @@ JobStore::JobStore(const std::string& path) {
           id TEXT PRIMARY KEY, name TEXT, version TEXT, registered REAL))");
 }
 
-JobStore::~JobStore() { sqlite3_close(db_); }
+JobStore::~JobStore() {
+  for (auto& [sql, st] : prepared_) sqlite3_finalize(st);
+  sqlite3_close(db_);
+}
+
+sqlite3_stmt* JobStore::Prepared(const char* sql) {
+  auto it = prepared_.find(sql);
+  if (it != prepared_.end()) return it->second;
+  sqlite3_stmt* st = nullptr;
+  if (sqlite3_prepare_v3(db_, sql, -1, SQLITE_PREPARE_PERSISTENT, &st, nullptr) != SQLITE_OK)
+    throw std::runtime_error(std::string("sqlite prepare: ") + sqlite3_errmsg(db_));
+  prepared_.emplace(sql, st);
+  return st;
+}
+
+// The statements of a task's life, each prepared once.
+static const char* const kInsertAttempt =
+    "INSERT INTO attempts(job_id, stage, task_id, worker_id, started) VALUES(?, ?, ?, ?, ?)";
+static const char* const kUpdateTask =
+    "UPDATE tasks SET state = ?, attempts = ?, failures = ?, result_sha = ?, last_error = ? "
+    "WHERE job_id = ? AND stage = ? AND task_id = ?";
+static const char* const kEndAttempt = "UPDATE attempts SET ended = ?, outcome = ? WHERE id = ?";
+
+int64_t JobStore::RecordLease(int64_t job, const TaskRecord& t, const std::string& worker) {
+  std::lock_guard lock(mu_);
+  Exec("BEGIN");
+  try {
+    Stmt(db_, Prepared(kInsertAttempt)).Bind(job).Bind(t.stage).Bind(t.task_id).Bind(worker).Bind(Now()).Step();
+    const int64_t attempt = sqlite3_last_insert_rowid(db_);
+    Stmt(db_, Prepared(kUpdateTask))
+        .Bind(t.state).Bind(t.attempts).Bind(t.failures).Bind(t.result_sha).Bind(t.last_error)
+        .Bind(job).Bind(t.stage).Bind(t.task_id).Step();
+    Exec("COMMIT");
+    return attempt;
+  } catch (...) {
+    Exec("ROLLBACK");
+    throw;
+  }
+}
+
+void JobStore::RecordCompletion(int64_t job, const TaskRecord& t, int64_t attempt) {
+  std::lock_guard lock(mu_);
+  Exec("BEGIN");
+  try {
+    Stmt(db_, Prepared(kUpdateTask))
+        .Bind(t.state).Bind(t.attempts).Bind(t.failures).Bind(t.result_sha).Bind(t.last_error)
+        .Bind(job).Bind(t.stage).Bind(t.task_id).Step();
+    if (attempt) Stmt(db_, Prepared(kEndAttempt)).Bind(Now()).Bind(std::string("done")).Bind(attempt).Step();
+    Exec("COMMIT");
+  } catch (...) {
+    Exec("ROLLBACK");
+    throw;
+  }
+}
 
 void JobStore::Exec(const char* sql) {
   char* err = nullptr;

@@ -11,6 +11,7 @@
 #include <vector>
 
 struct sqlite3;
+struct sqlite3_stmt;
 
 namespace lightfarm {
 
@@ -65,6 +66,11 @@ class JobStore {
   std::vector<TaskRecord> LoadTasks(int64_t id, int stage);  // by task id
   std::vector<TaskRecord> LoadAllTasks(int64_t id);          // by stage, task id
 
+  // A task leased (its attempt row, returned, and its task row) and completed (its task row and
+  // the attempt's end): one transaction each, on statements prepared once.
+  int64_t RecordLease(int64_t job, const TaskRecord& task, const std::string& worker);
+  void RecordCompletion(int64_t job, const TaskRecord& task, int64_t attempt);
+
   int64_t BeginAttempt(int64_t job, int stage, int task, const std::string& worker);
   void EndAttempt(int64_t attempt, const std::string& outcome);
 
@@ -74,8 +80,10 @@ class JobStore {
 
  private:
   void Exec(const char* sql);
+  sqlite3_stmt* Prepared(const char* sql);  // caller holds mu_
   std::mutex mu_;
   sqlite3* db_ = nullptr;
+  std::map<const char*, sqlite3_stmt*> prepared_;  // by the statement literal's address
 };
 
 }  // namespace lightfarm

@@ -468,14 +468,7 @@ class FarmServer::WorkerServiceImpl final : public v1::WorkerService::CallbackSe
                                       v1::LeaseTaskResponse* resp) override {
     return Unary(ctx, [this, req, resp, ctx] {
       if (ctx->IsCancelled()) return;  // the worker gave up waiting; do not lease to nobody
-      LeaseGrant g = c_.Lease(req->worker_id());
-      resp->set_has_task(g.has_task);
-      resp->set_lease_timeout_ms(c_.lease_timeout_ms());
-      if (!g.has_task) return;
-      resp->set_lease_id(g.lease_id);
-      *resp->mutable_job() = std::move(g.job);
-      resp->set_task(std::string(g.task.begin(), g.task.end()));
-      resp->set_artifact_sha256(g.artifact_sha);
+      FillLease(c_.Lease(req->worker_id()), resp);
     });
   }
   grpc::ServerUnaryReactor* Heartbeat(grpc::CallbackServerContext* ctx, const v1::HeartbeatRequest* req,
@@ -492,6 +485,7 @@ class FarmServer::WorkerServiceImpl final : public v1::WorkerService::CallbackSe
     if (!Authorized(token_, ctx)) return new RejectReadReactor<v1::TaskResultChunk>(kUnauthenticated);
     struct State {
       std::string worker, lease;
+      bool lease_next = false;
       Bytes data;
     };
     auto state = std::make_shared<State>();
@@ -502,11 +496,22 @@ class FarmServer::WorkerServiceImpl final : public v1::WorkerService::CallbackSe
     h.open = [state](const v1::TaskResultChunk& chunk) {
       state->worker = chunk.worker_id();
       state->lease = chunk.lease_id();
+      state->lease_next = chunk.lease_next();
       state->data.reserve(std::min<uint64_t>(chunk.total_size(), uint64_t(kMaxMessageBytes)));
       return uint64_t(chunk.total_size());
     };
     h.append = [state](const std::string& data) { state->data.insert(state->data.end(), data.begin(), data.end()); };
-    h.close = [this, state, resp] { resp->set_accepted(c_.Complete(state->worker, state->lease, state->data)); };
+    h.close = [this, state, resp] {
+      resp->set_accepted(c_.Complete(state->worker, state->lease, state->data));
+      if (!state->lease_next) return;
+      // The completion is recorded: a failing lease must not turn it into an error the worker
+      // would retry. It leases on its own instead.
+      try {
+        FillLease(c_.Lease(state->worker), resp->mutable_next());
+      } catch (const std::exception&) {
+        resp->clear_next();
+      }
+    };
     return new SizedStreamReader<v1::TaskResultChunk>(pool_, std::move(h));
   }
 
@@ -529,6 +534,16 @@ class FarmServer::WorkerServiceImpl final : public v1::WorkerService::CallbackSe
   }
 
  private:
+  void FillLease(LeaseGrant g, v1::LeaseTaskResponse* resp) {
+    resp->set_has_task(g.has_task);
+    resp->set_lease_timeout_ms(c_.lease_timeout_ms());
+    if (!g.has_task) return;
+    resp->set_lease_id(g.lease_id);
+    *resp->mutable_job() = std::move(g.job);
+    resp->set_task(std::string(g.task.begin(), g.task.end()));
+    resp->set_artifact_sha256(g.artifact_sha);
+  }
+
   Coordinator& c_;
   ThreadPool* pool_;
   std::string token_;

@@ -190,6 +190,12 @@ void Worker::Run() {
       backoff = std::min(backoff * 2, 5.0);
     }
   }
+  // Stopped with a task leased alongside the last completion: hand it back now rather than
+  // leave it to expire.
+  if (next_lease_) {
+    ReportFailure(next_lease_->lease_id(), "worker stopping", true);
+    next_lease_.reset();
+  }
 }
 
 std::string Worker::FetchBlob(const std::string& sha) {
@@ -251,7 +257,10 @@ bool Worker::RunOneTask() {
   v1::LeaseTaskRequest req;
   req.set_worker_id(worker_id_);
   v1::LeaseTaskResponse lease;
-  {
+  if (next_lease_) {  // leased with the previous task's completion
+    lease = std::move(*next_lease_);
+    next_lease_.reset();
+  } else {
     grpc::ClientContext ctx;
     Prepare(&ctx, options_.rpc_timeout_s);
     ThrowIfError(stub_->LeaseTask(&ctx, req, &lease));
@@ -357,9 +366,11 @@ void Worker::DeliverResult(const std::string& lease_id, const TaskOutput& output
       chunk.set_worker_id(worker_id_);
       chunk.set_lease_id(lease_id);
       chunk.set_total_size(bytes.size());
+      chunk.set_lease_next(!stop_ && !hand_back_);
     });
     if (st.ok()) {
       ++tasks_done_;
+      if (resp.has_next() && resp.next().has_task()) next_lease_ = resp.next();
       return;
     }
     if (!Transient(st.error_code()) || std::chrono::steady_clock::now() > give_up || hand_back_) {

@@ -12,6 +12,7 @@
 #include <list>
 #include <map>
 #include <memory>
+#include <optional>
 #include <mutex>
 #include <stdexcept>
 #include <string>
@@ -98,6 +99,7 @@ class Worker {
   uint32_t lease_timeout_ms_ = 30000;
   std::shared_ptr<JobRuntime> runtime_;  // the last job's scene and matrix
   std::atomic<bool> stop_{false}, hand_back_{false};
+  std::optional<v1::LeaseTaskResponse> next_lease_;  // leased with the last completion
   std::atomic<uint64_t> tasks_done_{0}, tasks_cancelled_{0};
   std::mutex sleep_mu_;
   std::condition_variable sleep_cv_;

@@ -42,7 +42,9 @@ TEST(PassAccumulator, MeanIsTheDirectAverageOfIndependentRendersBitForBit) {
   for (uint32_t k = 0; k < 3; ++k) {
     passes.push_back(RenderPass(9, k));
     acc.Add(passes.back(), 0.1);
-    if (k == 0) EXPECT_TRUE(testing::SameBits(acc.Mean(), passes[0])) << "one pass is the render itself";
+    if (k == 0) {
+      EXPECT_TRUE(testing::SameBits(acc.Mean(), passes[0])) << "one pass is the render itself";
+    }
   }
   ASSERT_FALSE(testing::SameBits(passes[0], passes[1])) << "passes must be independent renders";
   Image direct(passes[0].width, passes[0].height);
