@@ -104,7 +104,9 @@ md += [
     f"(one receiver row each), and {leases['workers']} registered no-op workers multiplexed over "
     f"{leases['clients']} client threads in the same process, each leasing a task and completing it with a "
     "valid zero result (SQLite task and attempt records, result validation and blob store included). "
-    "Latency: LeaseTask calls that returned a task, as the client sees them.",
+    "Workers ask for their next task with each result (`lease_next`), as lightfarm-worker does. "
+    "Latency: the call that delivered each lease (the completion carrying it, or LeaseTask), as the "
+    "client sees it.",
     "",
     "| repeat | leases/s | lease p50 (ms) | lease p99 (ms) | planning (s) |",
     "|---|---|---|---|---|",
