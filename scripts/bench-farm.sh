@@ -65,9 +65,9 @@ planscale=$("$build/lightfarm_bench_farm" --plan "$scene" --method brute --light
 commit=$(git -C "$root" rev-parse --short HEAD)$(git -C "$root" diff --quiet HEAD -- . ':!docs' || echo "+uncommitted")
 machine="$(nproc) cores ($(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs)), load average $(cut -d' ' -f1-3 /proc/loadavg)"
 python3 - "$root/docs/farm-benchmark.md" "$commit" "$machine" "$res" "$lights" "$repeats" "$leases" \
-  "${farm[*]}" "${embedded[*]}" "$(date -u +%Y-%m-%dT%H:%MZ)" "$planscale" <<'PY'
+  "${farm[*]}" "${embedded[*]}" "$(date -u +%Y-%m-%dT%H:%MZ)" "$planscale" "$plan_lights" <<'PY'
 import json, statistics, sys
-out, commit, machine, res, lights, repeats, leases, farm, embedded, date, planscale = sys.argv[1:]
+out, commit, machine, res, lights, repeats, leases, farm, embedded, date, planscale, plan_lights = sys.argv[1:]
 planscale = json.loads(planscale)
 farm = [float(x) for x in farm.split()]
 embedded = [float(x) for x in embedded.split()]
@@ -126,7 +126,7 @@ md += [
     "",
     "## Planning a large reference",
     "",
-    f"`lightfarm_bench_farm --plan scenes/cornell-box/scene.pbrt --method brute --lights {planscale['lights']} "
+    f"`lightfarm_bench_farm --plan scenes/cornell-box/scene.pbrt --method brute --lights {plan_lights} "
     f"--resolution {planscale['resolution']} --sample-tasks {planscale.get('sampled_tasks', 0)}`: BuildPlan as the "
     "coordinator runs it, then evenly spread tasks timed on one thread (a worker-core).",
     "",
