@@ -3,22 +3,29 @@
 # slurmd on localhost with a configuration generated here, in a private directory (no system
 # files touched, no systemd). Sourced by the Slurm test; after `slurm_start DIR`, sbatch, squeue,
 # scancel and sinfo talk to it (SLURM_CONF), and `slurm_stop` ends every daemon it started.
-# Needs root (slurmd runs jobs as their users) and Debian's slurm-wlm and munge.
+# The daemons run as root (slurmd starts job steps as their users): as this user when it is root,
+# else through passwordless sudo. Needs Debian's slurm-wlm and munge.
+
+SLURM_AS_ROOT=()
 
 slurm_free_port() { python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])'; }
 
 slurm_start() {
   local dir=$1
-  [ "$(id -u)" -eq 0 ] || { echo "single-node Slurm: needs root (slurmd starts job steps as their users)" >&2; return 1; }
+  SLURM_AS_ROOT=()
+  if [ "$(id -u)" -ne 0 ]; then
+    sudo -n true 2>/dev/null || { echo "single-node Slurm: needs root or passwordless sudo (slurmd starts job steps as their users)" >&2; return 1; }
+    SLURM_AS_ROOT=(sudo -n -E)
+  fi
   for tool in munged mungekey slurmctld slurmd sbatch squeue scancel sinfo; do
     command -v "$tool" >/dev/null || { echo "single-node Slurm: $tool not found (install slurm-wlm and munge)" >&2; return 1; }
   done
   SLURM_DIR=$dir
   mkdir -p "$dir/state" "$dir/spool" "$dir/munge"
   chmod 700 "$dir/munge"
-  mungekey --create --keyfile="$dir/munge/munge.key"
-  chmod 400 "$dir/munge/munge.key"
-  munged --force --key-file="$dir/munge/munge.key" --socket="$dir/munge/munge.socket" \
+  "${SLURM_AS_ROOT[@]}" mungekey --create --keyfile="$dir/munge/munge.key"
+  "${SLURM_AS_ROOT[@]}" chmod 400 "$dir/munge/munge.key"
+  "${SLURM_AS_ROOT[@]}" munged --force --key-file="$dir/munge/munge.key" --socket="$dir/munge/munge.socket" \
     --pid-file="$dir/munge/munged.pid" --log-file="$dir/munge/munged.log" --seed-file="$dir/munge/munged.seed"
   local host ctld_port slurmd_port
   host=$(hostname -s)
@@ -57,8 +64,8 @@ NodeName=$host NodeAddr=127.0.0.1 CPUs=8 RealMemory=4000 State=UNKNOWN
 PartitionName=test Nodes=$host Default=YES MaxTime=INFINITE State=UP
 CONF
   export SLURM_CONF=$dir/slurm.conf
-  slurmctld -i
-  slurmd
+  "${SLURM_AS_ROOT[@]}" env SLURM_CONF="$SLURM_CONF" slurmctld -i
+  "${SLURM_AS_ROOT[@]}" env SLURM_CONF="$SLURM_CONF" slurmd
   local _
   for _ in $(seq 60); do
     if sinfo -h -o %T 2>/dev/null | grep -qx idle; then return 0; fi
@@ -73,10 +80,10 @@ CONF
 slurm_stop() {
   local dir=${SLURM_DIR:-}
   [ -n "$dir" ] || return 0
-  scancel --user=root >/dev/null 2>&1 || true
+  scancel --user="$(id -un)" >/dev/null 2>&1 || true
   for pidfile in "$dir/slurmd.pid" "$dir/slurmctld.pid"; do
-    [ -f "$pidfile" ] && kill "$(cat "$pidfile")" 2>/dev/null || true
+    [ -f "$pidfile" ] && "${SLURM_AS_ROOT[@]}" kill "$(cat "$pidfile")" 2>/dev/null || true
   done
   sleep 1
-  munged --stop --socket="$dir/munge/munge.socket" >/dev/null 2>&1 || true
+  "${SLURM_AS_ROOT[@]}" munged --stop --socket="$dir/munge/munge.socket" >/dev/null 2>&1 || true
 }

@@ -4,7 +4,8 @@
 # (lightfarm-workers.sbatch) joins while it runs; one array element is killed mid-task
 # (SIGKILL to its worker, as a lost node would). The job must finish every pass, the killed
 # task must have been retried, and the image must equal `lightfarm render` of the same passes
-# bit for bit. Usage: test-slurm-farm.sh BUILD_DIR. Needs root, slurm-wlm and munge.
+# bit for bit. Usage: test-slurm-farm.sh BUILD_DIR. Needs root or passwordless sudo, slurm-wlm
+# and munge.
 set -euo pipefail
 root=$(cd "$(dirname "$0")/../.." && pwd)
 build=$(cd "${1:-$root/build}" && pwd)
@@ -16,7 +17,8 @@ fail() {
   for log in "$work"/*.log; do [ -f "$log" ] && { echo "--- $log" >&2; tail -20 "$log" >&2; }; done
   exit 1
 }
-cleanup() { slurm_stop; rm -rf "$work"; }
+# The daemons' files are root's when they ran through sudo.
+cleanup() { slurm_stop; "${SLURM_AS_ROOT[@]+"${SLURM_AS_ROOT[@]}"}" rm -rf "$work"; }
 trap cleanup EXIT
 
 slurm_start "$work/slurm" || fail "could not start a single-node Slurm"
