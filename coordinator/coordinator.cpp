@@ -291,7 +291,7 @@ void Coordinator::ProgressiveStatus(const Job& job, v1::JobStatus* st) const {
   const double mean_pass_s = pass_s / double(done);
   double left = double(job.passes.passes - std::min(done, job.passes.passes));
   if (job.passes.until_noise > 0) {
-    const uint32_t to_target = job.acc->PassesToReach(job.passes.until_noise);
+    const uint32_t to_target = PassesToReach(job.noise, done, job.passes.until_noise);
     const uint32_t floor_left = PassPlan::kMinNoisePasses - std::min(done, PassPlan::kMinNoisePasses);
     left = std::min(left, double(std::max(to_target == UINT32_MAX ? uint32_t(left) : to_target, floor_left)));
   }

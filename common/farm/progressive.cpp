@@ -88,12 +88,12 @@ NoiseEstimate PassAccumulator::Noise() const {
   return e;
 }
 
-uint32_t PassAccumulator::PassesToReach(double target) const {
-  const double noise = Noise().worst();
+uint32_t PassesToReach(const NoiseEstimate& estimate, uint32_t passes, double target) {
+  const double noise = estimate.worst();
   if (!(target > 0) || !std::isfinite(noise)) return std::numeric_limits<uint32_t>::max();
   if (noise <= target) return 0;
-  const double needed = std::ceil(double(passes()) * (noise / target) * (noise / target));
-  return uint32_t(std::min(needed - double(passes()), 4e9));
+  const double needed = std::ceil(double(passes) * (noise / target) * (noise / target));
+  return uint32_t(std::min(needed - double(passes), 4e9));
 }
 
 Bytes PassAccumulator::Serialize() const {

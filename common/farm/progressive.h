@@ -54,8 +54,6 @@ class PassAccumulator {
   // p90_rel_stderr: per pixel, the standard error of its luminance (Welford's variance over the
   // passes, over √N) over its mean, the 90th percentile over the pixels with a positive mean.
   NoiseEstimate Noise() const;
-  // Passes still needed for `target` at the 1/√N rate the estimates fall at; 0 when met.
-  uint32_t PassesToReach(double target) const;
 
   Bytes Serialize() const;
   static PassAccumulator Deserialize(ByteView bytes);  // throws SerializeError
@@ -68,6 +66,11 @@ class PassAccumulator {
   std::vector<double> pass_means_; // per pass: its image's mean luminance
   std::vector<double> pass_seconds_;
 };
+
+// Passes still needed after `passes` passes with `noise` to reach `target`, at the 1/√N rate the
+// estimates fall at; 0 when met, UINT32_MAX when not yet estimated. From a stored estimate, so a
+// status call does not recompute the per-pixel percentile.
+uint32_t PassesToReach(const NoiseEstimate& noise, uint32_t passes, double target);
 
 // Whether a job that has accumulated `acc` after `elapsed_s` seconds runs another pass.
 bool WantsAnotherPass(const PassPlan& plan, const PassAccumulator& acc, double elapsed_s);

@@ -149,6 +149,13 @@ TEST(PassPlan, StopsAtTheFirstPassBelowTheTargetOrAtTheLimits) {
   timed.time_limit_s = 2.0;
   EXPECT_TRUE(WantsAnotherPass(timed, acc, 1.9));
   EXPECT_FALSE(WantsAnotherPass(timed, acc, 2.0));
+  // The ETA's pass count: the noise falls as 1/√N, so half the noise takes four times the passes.
+  NoiseEstimate at4;
+  at4.rel_stderr = 0.01;
+  at4.p90_rel_stderr = 0.04;
+  EXPECT_EQ(PassesToReach(at4, 4, 0.02), 12u);
+  EXPECT_EQ(PassesToReach(at4, 4, 0.05), 0u);
+  EXPECT_EQ(PassesToReach(NoiseEstimate(), 1, 0.05), UINT32_MAX);
   PassPlan counted;
   counted.passes = acc.passes();
   EXPECT_FALSE(WantsAnotherPass(counted, acc, 0));
