@@ -64,8 +64,10 @@ NodeName=$host NodeAddr=127.0.0.1 CPUs=8 RealMemory=4000 State=UNKNOWN
 PartitionName=test Nodes=$host Default=YES MaxTime=INFINITE State=UP
 CONF
   export SLURM_CONF=$dir/slurm.conf
-  "${SLURM_AS_ROOT[@]}" env SLURM_CONF="$SLURM_CONF" slurmctld -i
-  "${SLURM_AS_ROOT[@]}" env SLURM_CONF="$SLURM_CONF" slurmd
+  # LIGHTFARM_SLURM_DAEMON marks the daemons and the step daemons slurmd forks (they inherit its
+  # environment), so that slurm_stop finds every one of them.
+  "${SLURM_AS_ROOT[@]}" env SLURM_CONF="$SLURM_CONF" LIGHTFARM_SLURM_DAEMON="$dir" slurmctld -i
+  "${SLURM_AS_ROOT[@]}" env SLURM_CONF="$SLURM_CONF" LIGHTFARM_SLURM_DAEMON="$dir" slurmd
   local _
   for _ in $(seq 60); do
     if sinfo -h -o %T 2>/dev/null | grep -qx idle; then return 0; fi
@@ -77,13 +79,31 @@ CONF
   return 1
 }
 
-slurm_stop() {
-  local dir=${SLURM_DIR:-}
-  [ -n "$dir" ] || return 0
-  scancel --user="$(id -un)" >/dev/null 2>&1 || true
-  for pidfile in "$dir/slurmd.pid" "$dir/slurmctld.pid"; do
-    [ -f "$pidfile" ] && "${SLURM_AS_ROOT[@]}" kill "$(cat "$pidfile")" 2>/dev/null || true
+# Submits a batch job to this Slurm, marked so that slurm_stop can find its processes.
+slurm_sbatch() { LIGHTFARM_SLURM_JOB=$SLURM_DIR sbatch "$@"; }
+
+# Every process whose environment holds NAME=VALUE.
+slurm_pids_with() {
+  local environ pid
+  for environ in /proc/[0-9]*/environ; do
+    pid=${environ#/proc/}
+    pid=${pid%/environ}
+    "${SLURM_AS_ROOT[@]+"${SLURM_AS_ROOT[@]}"}" cat "$environ" 2>/dev/null | tr '\0' '\n' | grep -qxF "$1" && echo "$pid"
   done
-  sleep 1
-  "${SLURM_AS_ROOT[@]}" munged --stop --socket="$dir/munge/munge.socket" >/dev/null 2>&1 || true
+  return 0
+}
+
+slurm_stop() {
+  local dir=${SLURM_DIR:-} _ pids
+  [ -n "$dir" ] || return 0
+  # Jobs first, while slurmctld can still cancel them; then whatever they left, the daemons and
+  # their step daemons (a killed slurmd leaves its slurmstepd processes running).
+  scancel --user="$(id -un)" >/dev/null 2>&1 || true
+  for _ in $(seq 20); do [ -z "$(squeue -h 2>/dev/null)" ] && break; sleep 0.5; done
+  pids=$(slurm_pids_with "LIGHTFARM_SLURM_JOB=$dir")
+  [ -z "$pids" ] || "${SLURM_AS_ROOT[@]+"${SLURM_AS_ROOT[@]}"}" kill -KILL $pids 2>/dev/null || true
+  pids=$(slurm_pids_with "LIGHTFARM_SLURM_DAEMON=$dir")
+  [ -z "$pids" ] || "${SLURM_AS_ROOT[@]+"${SLURM_AS_ROOT[@]}"}" kill -KILL $pids 2>/dev/null || true
+  "${SLURM_AS_ROOT[@]+"${SLURM_AS_ROOT[@]}"}" munged --stop --socket="$dir/munge/munge.socket" >/dev/null 2>&1 || true
+  SLURM_DIR=
 }

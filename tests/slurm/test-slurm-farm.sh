@@ -30,7 +30,7 @@ export LIGHTFARM_BIN=$build LIGHTFARM_STATE=$work/farm-state LIGHTFARM_TOKEN_FIL
 export LIGHTFARM_COORDINATOR_ARGS="--lease-timeout 3" LIGHTFARM_WORKER_ARGS="--log-level debug"
 lf() { "$build/lightfarm" "$@"; }
 
-farm=$(sbatch --parsable --nodes 1 --ntasks 1 --cpus-per-task 1 --output "$work/farm-%j.log" \
+farm=$(slurm_sbatch --parsable --nodes 1 --ntasks 1 --cpus-per-task 1 --output "$work/farm-%j.log" \
   "$root/deploy/slurm/lightfarm-farm.sbatch")
 for _ in $(seq 60); do lf status --server "$server" --token-file "$token" >/dev/null 2>&1 && break; sleep 1; done
 lf status --server "$server" --token-file "$token" >/dev/null || fail "the farm allocation's coordinator did not come up"
@@ -42,7 +42,7 @@ job=$(lf submit "$scene" --server "$server" --token-file "$token" --quiet "${opt
 echo "slurm: farm allocation $farm, job $job"
 
 # Workers join while the job runs.
-array=$(sbatch --parsable --array=1-2 --cpus-per-task 1 --output "$work/worker-%A_%a.log" \
+array=$(slurm_sbatch --parsable --array=1-2 --cpus-per-task 1 --output "$work/worker-%A_%a.log" \
   --export=ALL,LIGHTFARM_COORDINATOR="$server" "$root/deploy/slurm/lightfarm-workers.sbatch")
 victim_log=$work/worker-${array}_1.log
 for _ in $(seq 600); do grep -q "leased" "$victim_log" 2>/dev/null && break; sleep 0.1; done
