@@ -42,7 +42,9 @@ bool Transient(grpc::StatusCode c) {
 BlobCache::BlobCache(std::string dir, uint64_t max_bytes) : dir_(std::move(dir)), max_bytes_(max_bytes) {
   fs::create_directories(dir_ + "/tmp");
   std::error_code ec;
-  for (const auto& e : fs::directory_iterator(dir_ + "/tmp", ec)) fs::remove(e.path(), ec);
+  // What a killed worker left half-written: partial blobs and scene directories, all of it (a
+  // scene directory left behind made every later worker on this cache fail its tasks).
+  for (const auto& e : fs::directory_iterator(dir_ + "/tmp", ec)) fs::remove_all(e.path(), ec);
   // Blobs of a previous run are reused, oldest first out.
   std::vector<std::pair<fs::file_time_type, fs::path>> existing;
   for (const auto& e : fs::directory_iterator(dir_))

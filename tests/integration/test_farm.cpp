@@ -341,6 +341,31 @@ TEST(Farm, KilledCoordinatorResumesWithoutRecomputingFinishedTasks) {
   EXPECT_EQ(nlohmann::json::parse(stats)["farm"]["tasks"], ExpectedTasks());
 }
 
+// A worker killed while it prepared a task leaves a half-materialized scene directory in its
+// cache; a worker started later on the same cache (a Slurm array element with the same index, a
+// restarted pod with a persistent volume) must clear it and run tasks, not fail each one.
+TEST(Farm, AWorkerOnTheCacheOfAKilledWorkerRunsTasks) {
+  TempDir dir;
+  CoordinatorProcess coordinator(dir, dir.Path("state"), {});
+  const std::string cache = dir.Path("reused-cache");
+  // The worker's temporary names are a counter: leave every name its first task would use.
+  for (int k = 0; k < 8; ++k) {
+    const std::string left = cache + "/blobs/tmp/" + std::to_string(k) + "-scene";
+    std::filesystem::create_directories(left + "/meshes");
+    std::ofstream(left + "/scene.pbrt") << "left by a killed worker";
+    std::ofstream(left + "/tiny.pbrt") << "left by a killed worker";
+  }
+  std::ofstream(cache + "/blobs/tmp/0") << "a partial blob";
+  Process worker({LIGHTFARM_WORKER_PATH, "--coordinator", coordinator.address(), "--threads", "1", "--poll-interval",
+                  "0.02", "--cache-dir", cache, "--log-level", "warn"},
+                 dir.Path("reused-worker"));
+  const std::string scene = dir.Write("tiny.pbrt", kTinyScene);
+  CliResult ok = RunCli(dir, {"submit", scene, "--server", coordinator.address(), "--wait", "--quiet", "--lights",
+                              "10", "--out", dir.Path("tiny.exr")});
+  EXPECT_EQ(ok.exit_code, 0) << ok.err;
+  EXPECT_FALSE(std::filesystem::exists(cache + "/blobs/tmp/7-scene/scene.pbrt"));
+}
+
 TEST(Farm, AuthenticationIsRequiredOnEveryRpc) {
   TempDir dir;
   const std::string token = dir.Write("token", "s3cret-token\n");
