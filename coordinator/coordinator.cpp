@@ -103,19 +103,21 @@ void Coordinator::Start() {
     job.result_sha = r.result_sha;
     job.stats_json = r.stats_json;
     job.passes = FromProto(job.settings).progressive;
-    job.pass = r.pass;
     if (job.passes.progressive()) {
       PassAccumulator acc;
-      if (!r.accum_sha.empty()) {
-        try {
-          acc = PassAccumulator::Deserialize(blobs_->Get(r.accum_sha));
-        } catch (const std::exception& e) {
-          // Without the accumulation the finished passes cannot be trusted: start over.
-          spdlog::error("job {}: the accumulation of its {} passes is unreadable ({}); restarting at pass 0",
-                        job.id, r.pass, e.what());
-          acc = PassAccumulator();
-          job.pass = 0;
+      try {
+        if (!r.accum_sha.empty()) acc = PassAccumulator::Deserialize(blobs_->Get(r.accum_sha));
+        if (int(acc.passes()) != r.pass)
+          throw std::runtime_error("it holds " + std::to_string(acc.passes()) + " passes, the job " +
+                                   std::to_string(r.pass));
+      } catch (const std::exception& e) {
+        // The store's tasks belong to pass r.pass: without its accumulation nothing can resume.
+        if (!IsTerminal(job.state)) {
+          job.state = v1::JOB_STATE_FAILED;
+          job.error = std::string("the accumulation of the finished passes is unreadable: ") + e.what();
+          store_->SetJobState(job.id, job.state, job.error);
         }
+        acc = PassAccumulator();
       }
       job.pass = int(acc.passes());
       job.noise = acc.Noise();

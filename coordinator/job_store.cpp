@@ -128,15 +128,23 @@ static const char* const kUpdateTask =
     "WHERE job_id = ? AND stage = ? AND task_id = ?";
 static const char* const kEndAttempt = "UPDATE attempts SET ended = ?, outcome = ? WHERE id = ?";
 
+void JobStore::WriteTask(int64_t job, const TaskRecord& t) {
+  Stmt(db_, Prepared(kUpdateTask))
+      .Bind(t.state).Bind(t.attempts).Bind(t.failures).Bind(t.result_sha).Bind(t.last_error)
+      .Bind(job).Bind(t.stage).Bind(t.task_id).Step();
+}
+
+void JobStore::WriteAttemptEnd(int64_t attempt, const std::string& outcome) {
+  Stmt(db_, Prepared(kEndAttempt)).Bind(Now()).Bind(outcome).Bind(attempt).Step();
+}
+
 int64_t JobStore::RecordLease(int64_t job, const TaskRecord& t, const std::string& worker) {
   std::lock_guard lock(mu_);
   Exec("BEGIN");
   try {
     Stmt(db_, Prepared(kInsertAttempt)).Bind(job).Bind(t.stage).Bind(t.task_id).Bind(worker).Bind(Now()).Step();
     const int64_t attempt = sqlite3_last_insert_rowid(db_);
-    Stmt(db_, Prepared(kUpdateTask))
-        .Bind(t.state).Bind(t.attempts).Bind(t.failures).Bind(t.result_sha).Bind(t.last_error)
-        .Bind(job).Bind(t.stage).Bind(t.task_id).Step();
+    WriteTask(job, t);
     Exec("COMMIT");
     return attempt;
   } catch (...) {
@@ -149,10 +157,8 @@ void JobStore::RecordCompletion(int64_t job, const TaskRecord& t, int64_t attemp
   std::lock_guard lock(mu_);
   Exec("BEGIN");
   try {
-    Stmt(db_, Prepared(kUpdateTask))
-        .Bind(t.state).Bind(t.attempts).Bind(t.failures).Bind(t.result_sha).Bind(t.last_error)
-        .Bind(job).Bind(t.stage).Bind(t.task_id).Step();
-    if (attempt) Stmt(db_, Prepared(kEndAttempt)).Bind(Now()).Bind(std::string("done")).Bind(attempt).Step();
+    WriteTask(job, t);
+    if (attempt) WriteAttemptEnd(attempt, "done");
     Exec("COMMIT");
   } catch (...) {
     Exec("ROLLBACK");
@@ -241,10 +247,7 @@ void JobStore::InsertTasks(int64_t id, int stage, int count) {
 
 void JobStore::UpdateTask(int64_t id, const TaskRecord& t) {
   std::lock_guard lock(mu_);
-  Stmt(db_, "UPDATE tasks SET state = ?, attempts = ?, failures = ?, result_sha = ?, "
-            "last_error = ? WHERE job_id = ? AND stage = ? AND task_id = ?")
-      .Bind(t.state).Bind(t.attempts).Bind(t.failures).Bind(t.result_sha).Bind(t.last_error)
-      .Bind(id).Bind(t.stage).Bind(t.task_id).Step();
+  WriteTask(id, t);
 }
 
 static std::vector<TaskRecord> ReadTasks(Stmt& s) {
@@ -279,17 +282,9 @@ std::vector<TaskRecord> JobStore::LoadAllTasks(int64_t id) {
   return ReadTasks(s);
 }
 
-int64_t JobStore::BeginAttempt(int64_t job, int stage, int task, const std::string& worker) {
-  std::lock_guard lock(mu_);
-  Stmt(db_, "INSERT INTO attempts(job_id, stage, task_id, worker_id, started) VALUES(?, ?, ?, ?, ?)")
-      .Bind(job).Bind(stage).Bind(task).Bind(worker).Bind(Now()).Step();
-  return sqlite3_last_insert_rowid(db_);
-}
-
 void JobStore::EndAttempt(int64_t attempt, const std::string& outcome) {
   std::lock_guard lock(mu_);
-  Stmt(db_, "UPDATE attempts SET ended = ?, outcome = ? WHERE id = ?")
-      .Bind(Now()).Bind(outcome).Bind(attempt).Step();
+  WriteAttemptEnd(attempt, outcome);
 }
 
 std::vector<JobRecord> JobStore::LoadJobs() {

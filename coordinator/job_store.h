@@ -71,7 +71,6 @@ class JobStore {
   int64_t RecordLease(int64_t job, const TaskRecord& task, const std::string& worker);
   void RecordCompletion(int64_t job, const TaskRecord& task, int64_t attempt);
 
-  int64_t BeginAttempt(int64_t job, int stage, int task, const std::string& worker);
   void EndAttempt(int64_t attempt, const std::string& outcome);
 
   std::vector<JobRecord> LoadJobs();
@@ -80,7 +79,10 @@ class JobStore {
 
  private:
   void Exec(const char* sql);
-  sqlite3_stmt* Prepared(const char* sql);  // caller holds mu_
+  // Caller holds mu_.
+  sqlite3_stmt* Prepared(const char* sql);
+  void WriteTask(int64_t job, const TaskRecord& task);
+  void WriteAttemptEnd(int64_t attempt, const std::string& outcome);
   std::mutex mu_;
   sqlite3* db_ = nullptr;
   std::map<const char*, sqlite3_stmt*> prepared_;  // by the statement literal's address
