@@ -24,6 +24,8 @@ int main(int argc, char** argv) {
   lightfarm::cli::AddStatusCommand(app);
   lightfarm::cli::AddWatchCommand(app);
   lightfarm::cli::AddCancelCommand(app);
+  lightfarm::cli::AddPriorityCommand(app);
+  lightfarm::cli::AddWorkersCommand(app);
   lightfarm::cli::AddFetchCommand(app);
   try {
     app.parse(argc, argv);

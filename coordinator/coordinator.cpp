@@ -87,7 +87,8 @@ Coordinator::~Coordinator() { Stop(); }
 void Coordinator::Start() {
   planner_ = std::make_unique<ThreadPool>(std::max(1, options_.planner_threads));
   std::lock_guard lock(mu_);
-  for (const std::string& w : store_->LoadWorkerIds()) workers_.insert(w);
+  for (const JobStore::WorkerRecord& w : store_->LoadWorkers())
+    workers_[w.id] = WorkerInfo{w.name, w.version, w.threads};
   // Every unfinished job is planned again (deterministic) and continues at its stage; the
   // tasks already done keep their results (JobStore), so none is recomputed.
   for (JobRecord& r : store_->LoadJobs()) {
@@ -274,6 +275,12 @@ v1::JobStatus Coordinator::StatusLocked(const Job& job) const {
   } else if (job.state == v1::JOB_STATE_DONE) {
     st.set_eta_s(0);
   }
+  // A job that ended under this coordinator: how long it ran (one restored from the store: 0).
+  if (IsTerminal(job.state) && job.ended > job.started && job.started != Clock::time_point{})
+    st.set_elapsed_s(Seconds(job.ended - job.started));
+  st.set_scene(job.manifest.root());
+  for (const v1::SceneFile& f : job.manifest.files())
+    if (f.path() == job.manifest.root()) st.set_scene_sha256(f.sha256());
   if (job.passes.progressive()) ProgressiveStatus(job, &st);
   return st;
 }
@@ -319,6 +326,7 @@ v1::JobStatus Coordinator::Cancel(const std::string& job_id) {
   Job& job = FindJob(job_id);
   if (!IsTerminal(job.state)) {
     job.state = v1::JOB_STATE_CANCELLED;
+    job.ended = Clock::now();
     job.error = "cancelled";
     job.plan.reset();
     store_->SetJobState(job.id, job.state, job.error);
@@ -326,6 +334,65 @@ v1::JobStatus Coordinator::Cancel(const std::string& job_id) {
     MaybeStartPlanningLocked();
   }
   return StatusLocked(job);
+}
+
+v1::JobStatus Coordinator::SetPriority(const std::string& job_id, int priority) {
+  std::lock_guard lock(mu_);
+  Job& job = FindJob(job_id);
+  if (IsTerminal(job.state))
+    throw FarmError(Code::kFailedPrecondition,
+                    "job " + job_id + " is " + JobStateName(job.state) + ": its priority no longer matters");
+  if (job.priority != priority) {
+    store_->SetJobPriority(job.id, priority);
+    spdlog::info("job {}: priority {} -> {}", job.id, job.priority, priority);
+    job.priority = priority;
+  }
+  return StatusLocked(job);
+}
+
+void Coordinator::SeenLocked(const std::string& worker_id) {
+  WorkerInfo& w = workers_[worker_id];
+  w.seen = true;
+  w.last_seen = Clock::now();
+}
+
+std::vector<v1::WorkerStatus> Coordinator::ListWorkers() {
+  std::lock_guard lock(mu_);
+  const auto now = Clock::now();
+  std::vector<std::pair<double, v1::WorkerStatus>> rows;
+  for (const auto& [id, w] : workers_) {
+    if (!w.seen) continue;
+    v1::WorkerStatus st;
+    st.set_worker_id(id);
+    st.set_name(w.name);
+    st.set_version(w.version);
+    st.set_threads(w.threads);
+    const double ago = Seconds(now - w.last_seen);
+    st.set_last_seen_s(ago);
+    st.set_alive(ago < 2.0 * options_.lease_timeout_s);
+    st.set_tasks_done(w.tasks_done);
+    st.set_tasks_failed(w.tasks_failed);
+    // The lease it was granted, while the task is still its own (an expired one was re-queued).
+    LeaseRef ref;
+    Job* job = nullptr;
+    if (!w.lease.empty() && ParseLease(w.lease, &ref)) {
+      const Task* task = FindTaskLocked(ref, &job);
+      if (task && task->state == TaskStateCode::kLeased && task->worker == id) {
+        st.set_lease_id(w.lease);
+        st.set_job_id(std::to_string(ref.job));
+      }
+    }
+    for (const auto& [job_id, j] : jobs_) {
+      auto f = j.worker_failures.find(id);
+      if (!IsTerminal(j.state) && f != j.worker_failures.end() && f->second >= options_.max_attempts)
+        st.add_blocked_jobs(std::to_string(job_id));
+    }
+    rows.emplace_back(ago, std::move(st));
+  }
+  std::stable_sort(rows.begin(), rows.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  std::vector<v1::WorkerStatus> out;
+  for (auto& [ago, st] : rows) out.push_back(std::move(st));
+  return out;
 }
 
 JobResult Coordinator::GetResult(const std::string& job_id) {
@@ -387,7 +454,7 @@ bool Coordinator::Preview(const std::string& job_id, uint64_t have_tiles, JobPre
 // --- worker API ---------------------------------------------------------------------------------
 
 std::string Coordinator::RegisterWorker(const std::string& name, uint32_t protocol_version,
-                                        const std::string& software_version) {
+                                        const std::string& software_version, int threads) {
   if (protocol_version != kWorkerProtocolVersion)
     throw FarmError(Code::kFailedPrecondition,
                     "worker \"" + name + "\" speaks worker protocol " + std::to_string(protocol_version) +
@@ -395,9 +462,10 @@ std::string Coordinator::RegisterWorker(const std::string& name, uint32_t protoc
                         std::to_string(kWorkerProtocolVersion) + " (lightfarm " LIGHTFARM_VERSION
                         "): upgrade the worker to the coordinator's version");
   std::string id = "w-" + RandomId();
-  store_->UpsertWorker(id, name, software_version);
+  store_->UpsertWorker({id, name, software_version, threads});
   std::lock_guard lock(mu_);
-  workers_.insert(id);
+  workers_[id] = WorkerInfo{name, software_version, threads};
+  SeenLocked(id);
   spdlog::info("worker {} registered as {}", name, id);
   return id;
 }
@@ -450,6 +518,9 @@ LeaseGrant Coordinator::Lease(const std::string& worker_id) {
   std::lock_guard lock(mu_);
   if (!workers_.count(worker_id))
     throw FarmError(Code::kNotFound, "unknown worker " + worker_id + "; register again");
+  SeenLocked(worker_id);
+  WorkerInfo& worker = workers_[worker_id];
+  worker.lease.clear();  // a worker asks for a task when it holds none
   LeaseGrant grant;
   if (draining_ || stopping_) return grant;
   // Highest priority first, then the oldest job; within a job the lowest task id.
@@ -484,6 +555,7 @@ LeaseGrant Coordinator::Lease(const std::string& worker_id) {
   grant.has_task = true;
   grant.lease_id = std::to_string(job.id) + "." + std::to_string(job.stage) + "." +
                    std::to_string(best_task) + "." + std::to_string(task.attempt_row);
+  worker.lease = grant.lease_id;
   v1::JobContext& ctx = grant.job;
   ctx.set_job_id(std::to_string(job.id));
   *ctx.mutable_scene() = job.manifest;
@@ -501,6 +573,7 @@ bool Coordinator::Heartbeat(const std::string& worker_id, const std::string& lea
   if (!ParseLease(lease_id, &ref)) throw FarmError(Code::kInvalidArgument, "malformed lease id");
   std::lock_guard lock(mu_);
   CheckLeaseLocked(worker_id, lease_id, ref);
+  SeenLocked(worker_id);
   Job* job = nullptr;
   Task* task = FindTaskLocked(ref, &job);
   if (!task || task->state == TaskStateCode::kDone) return false;
@@ -551,6 +624,9 @@ bool Coordinator::Complete(const std::string& worker_id, const std::string& leas
   if (problem.empty()) sha = blobs_->Put(bytes);
 
   std::lock_guard lock(mu_);
+  SeenLocked(worker_id);
+  WorkerInfo& worker = workers_[worker_id];
+  if (worker.lease == lease_id) worker.lease.clear();
   Job* job = nullptr;
   Task* task = FindTaskLocked(ref, &job);
   if (!task || task->state == TaskStateCode::kDone) {
@@ -567,6 +643,7 @@ bool Coordinator::Complete(const std::string& worker_id, const std::string& leas
   task->state = TaskStateCode::kDone;
   task->result_sha = sha;
   task->worker = worker_id;
+  ++worker.tasks_done;
   store_->RecordCompletion(job->id,
                           TaskRecord{job->stage, int(ref.task), int(task->state), task->attempts, task->failures,
                                      sha, task->last_error},
@@ -588,6 +665,8 @@ void Coordinator::Fail(const std::string& worker_id, const std::string& lease_id
   if (!ParseLease(lease_id, &ref)) throw FarmError(Code::kInvalidArgument, "malformed lease id");
   std::lock_guard lock(mu_);
   CheckLeaseLocked(worker_id, lease_id, ref);
+  SeenLocked(worker_id);
+  if (workers_[worker_id].lease == lease_id) workers_[worker_id].lease.clear();
   Job* job = nullptr;
   Task* task = FindTaskLocked(ref, &job);
   if (!task || task->state != TaskStateCode::kLeased || task->worker != worker_id) return;
@@ -604,6 +683,7 @@ void Coordinator::RecordFailureLocked(Job& job, uint32_t task_id, const std::str
                                       const std::string& reason) {
   Task& task = job.tasks[task_id];
   ++m_failed_;
+  if (auto w = workers_.find(worker); w != workers_.end()) ++w->second.tasks_failed;
   ++task.failures;
   task.last_error = reason;
   task.state = TaskStateCode::kPending;
@@ -623,6 +703,7 @@ void Coordinator::RecordFailureLocked(Job& job, uint32_t task_id, const std::str
 
 void Coordinator::FailJobLocked(Job& job, const std::string& error) {
   job.state = v1::JOB_STATE_FAILED;
+  job.ended = Clock::now();
   job.error = error;
   job.plan.reset();
   store_->SetJobState(job.id, job.state, error);
@@ -846,6 +927,7 @@ void Coordinator::FinishJob(int64_t id, std::shared_ptr<Plan> plan, int final_st
     }
   }
   job.state = v1::JOB_STATE_DONE;
+  job.ended = Clock::now();
   spdlog::info("job {}: done ({} tasks, {} attempts)", id, finished.tasks, finished.attempts);
   MaybeStartPlanningLocked();
 }

@@ -95,6 +95,10 @@ class Coordinator {
   v1::JobStatus GetJob(const std::string& job_id);
   std::vector<v1::JobStatus> ListJobs();
   v1::JobStatus Cancel(const std::string& job_id);
+  // FAILED_PRECONDITION once the job has ended.
+  v1::JobStatus SetPriority(const std::string& job_id, int priority);
+  // Workers registered or seen since this coordinator started, most recently seen first.
+  std::vector<v1::WorkerStatus> ListWorkers();
   JobResult GetResult(const std::string& job_id);
   // The preview of a job in its final stage when more than `have_tiles` tiles are done; false
   // when there is nothing newer (or the job is not in its final stage). Shared by all watchers.
@@ -102,7 +106,7 @@ class Coordinator {
 
   // --- worker API ---
   std::string RegisterWorker(const std::string& name, uint32_t protocol_version,
-                             const std::string& software_version);
+                             const std::string& software_version, int threads = 0);
   LeaseGrant Lease(const std::string& worker_id);
   bool Heartbeat(const std::string& worker_id, const std::string& lease_id);
   bool Complete(const std::string& worker_id, const std::string& lease_id, const Bytes& output);
@@ -141,7 +145,7 @@ class Coordinator {
     std::string lights_sha, receivers_sha, artifact_sha;
     float clamp = 0;
     std::string error;
-    Clock::time_point started, stage_started;
+    Clock::time_point started, stage_started, ended;
     size_t done_at_stage_start = 0;
     std::map<std::string, int> worker_failures;
     uint64_t attempts_total = 0, completions_total = 0;
@@ -156,6 +160,17 @@ class Coordinator {
     NoiseEstimate noise;
     Clock::time_point pass_started;
   };
+  // What the dashboard shows of a worker; only its identity is durable (JobStore).
+  struct WorkerInfo {
+    std::string name, version;
+    int threads = 0;
+    bool seen = false;  // called since this coordinator started
+    Clock::time_point last_seen;
+    std::string lease;  // the lease it holds, if any
+    uint64_t tasks_done = 0, tasks_failed = 0;
+  };
+  // A call from a known worker (caller holds mu_).
+  void SeenLocked(const std::string& worker_id);
   struct LeaseRef {
     int64_t job;
     int stage;
@@ -192,7 +207,7 @@ class Coordinator {
   std::mutex mu_;
   std::mutex preview_mu_;  // one preview computed at a time (they are throttled per watcher)
   std::map<int64_t, Job> jobs_;
-  std::set<std::string> workers_;
+  std::map<std::string, WorkerInfo> workers_;
   std::atomic<bool> draining_{false};
   bool stopping_ = false;
   std::condition_variable tick_cv_;

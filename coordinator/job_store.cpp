@@ -102,7 +102,13 @@ JobStore::JobStore(const std::string& path) {
           id INTEGER PRIMARY KEY AUTOINCREMENT, job_id INTEGER, stage INTEGER, task_id INTEGER,
           worker_id TEXT, started REAL, ended REAL, outcome TEXT DEFAULT ''))");
   Exec(R"(CREATE TABLE IF NOT EXISTS workers(
-          id TEXT PRIMARY KEY, name TEXT, version TEXT, registered REAL))");
+          id TEXT PRIMARY KEY, name TEXT, version TEXT, registered REAL, threads INTEGER DEFAULT 0))");
+  {
+    bool has_threads = false;  // state directories from before the dashboard
+    Stmt columns(db_, "PRAGMA table_info(workers)");
+    while (columns.Step()) has_threads |= columns.Str(1) == "threads";
+    if (!has_threads) Exec("ALTER TABLE workers ADD COLUMN threads INTEGER DEFAULT 0");
+  }
 }
 
 JobStore::~JobStore() {
@@ -312,19 +318,23 @@ std::vector<JobRecord> JobStore::LoadJobs() {
   return out;
 }
 
-void JobStore::UpsertWorker(const std::string& id, const std::string& name,
-                            const std::string& version) {
+void JobStore::UpsertWorker(const WorkerRecord& w) {
   std::lock_guard lock(mu_);
-  Stmt(db_, "INSERT OR REPLACE INTO workers(id, name, version, registered) VALUES(?, ?, ?, ?)")
-      .Bind(id).Bind(name).Bind(version).Bind(Now()).Step();
+  Stmt(db_, "INSERT OR REPLACE INTO workers(id, name, version, registered, threads) VALUES(?, ?, ?, ?, ?)")
+      .Bind(w.id).Bind(w.name).Bind(w.version).Bind(Now()).Bind(w.threads).Step();
 }
 
-std::vector<std::string> JobStore::LoadWorkerIds() {
+std::vector<JobStore::WorkerRecord> JobStore::LoadWorkers() {
   std::lock_guard lock(mu_);
-  Stmt s(db_, "SELECT id FROM workers");
-  std::vector<std::string> out;
-  while (s.Step()) out.push_back(s.Str(0));
+  Stmt s(db_, "SELECT id, name, version, threads FROM workers");
+  std::vector<WorkerRecord> out;
+  while (s.Step()) out.push_back(WorkerRecord{s.Str(0), s.Str(1), s.Str(2), int(s.Int(3))});
   return out;
+}
+
+void JobStore::SetJobPriority(int64_t id, int priority) {
+  std::lock_guard lock(mu_);
+  Stmt(db_, "UPDATE jobs SET priority = ? WHERE id = ?").Bind(priority).Bind(id).Step();
 }
 
 }  // namespace lightfarm

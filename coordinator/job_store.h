@@ -74,8 +74,14 @@ class JobStore {
   void EndAttempt(int64_t attempt, const std::string& outcome);
 
   std::vector<JobRecord> LoadJobs();
-  void UpsertWorker(const std::string& id, const std::string& name, const std::string& version);
-  std::vector<std::string> LoadWorkerIds();
+  void SetJobPriority(int64_t id, int priority);
+
+  struct WorkerRecord {
+    std::string id, name, version;
+    int threads = 0;
+  };
+  void UpsertWorker(const WorkerRecord& worker);
+  std::vector<WorkerRecord> LoadWorkers();
 
  private:
   void Exec(const char* sql);

@@ -1,5 +1,5 @@
 // `lightfarm-coordinator --listen HOST:PORT --state-dir DIR [--token-file F] [--tls-cert F
-// --tls-key F] [--metrics-listen HOST:PORT] [limits]`: the farm's job service. SIGTERM/SIGINT
+// --tls-key F] [--metrics-listen HOST:PORT] [--http-listen [HOST:]PORT] [limits]`: the farm's job service. SIGTERM/SIGINT
 // drain it (health NOT_SERVING, in-flight RPCs finish); unfinished jobs resume at the next start.
 #include <spdlog/spdlog.h>
 
@@ -31,6 +31,12 @@ int main(int argc, char** argv) {
   app.add_option("--tls-key", server.tls_key, "PEM private key (TLS)");
   app.add_option("--metrics-listen", server.metrics_listen, "HOST:PORT serving Prometheus /metrics")
       ->check(listen_address);
+  app.add_option("--http-listen", server.http_listen,
+                 "[HOST:]PORT serving the dashboard at /, JSON at /api/v1/ and /metrics (PORT alone: 127.0.0.1)");
+  app.add_flag("--http-allow-open", server.http_allow_open,
+               "Serve the dashboard on a non-loopback host without --token-file (anyone reaching it can cancel jobs)");
+  app.add_option("--bench-dir", server.bench_dir,
+                 "Directory of `lightfarm bench --out-dir` results whose error-versus-time plots the dashboard shows");
   app.add_option("--lease-timeout", opt.lease_timeout_s, "Seconds a lease lives without a heartbeat")
       ->check(lightfarm::FiniteRange(0.05, 86400.0));
   app.add_option("--max-attempts", opt.max_attempts, "Failed attempts before a task (and its job) fails")
@@ -59,6 +65,7 @@ int main(int argc, char** argv) {
     lightfarm::CatchStopSignals();
     // The port line is how scripts learn a picked port (--listen HOST:0).
     std::cout << "listening on port " << farm.port() << std::endl;
+    if (farm.http_port()) std::cout << "dashboard on port " << farm.http_port() << std::endl;
     spdlog::info("listening on {} (port {}), state in {}", server.listen, farm.port(), opt.state_dir);
     while (lightfarm::StopSignals() == 0) std::this_thread::sleep_for(std::chrono::milliseconds(100));
     spdlog::info("draining");

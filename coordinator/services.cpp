@@ -2,7 +2,6 @@
 
 #include <grpcpp/ext/proto_server_reflection_plugin.h>
 #include <grpcpp/health_check_service_interface.h>
-#include <httplib.h>
 #include <spdlog/spdlog.h>
 
 #include <fstream>
@@ -413,6 +412,16 @@ class FarmServer::RenderServiceImpl final : public v1::RenderService::CallbackSe
                                       v1::JobStatus* resp) override {
     return Unary(ctx, [this, req, resp] { *resp = c_.Cancel(req->job_id()); });
   }
+  grpc::ServerUnaryReactor* SetJobPriority(grpc::CallbackServerContext* ctx, const v1::SetJobPriorityRequest* req,
+                                           v1::JobStatus* resp) override {
+    return Unary(ctx, [this, req, resp] { *resp = c_.SetPriority(req->job_id(), req->priority()); });
+  }
+  grpc::ServerUnaryReactor* ListWorkers(grpc::CallbackServerContext* ctx, const v1::ListWorkersRequest*,
+                                        v1::ListWorkersResponse* resp) override {
+    return Unary(ctx, [this, resp] {
+      for (v1::WorkerStatus& w : c_.ListWorkers()) *resp->add_workers() = std::move(w);
+    });
+  }
 
   grpc::ServerWriteReactor<v1::JobStatus>* WatchJob(grpc::CallbackServerContext* ctx,
                                                    const v1::GetJobRequest* req) override {
@@ -460,7 +469,8 @@ class FarmServer::WorkerServiceImpl final : public v1::WorkerService::CallbackSe
   grpc::ServerUnaryReactor* Register(grpc::CallbackServerContext* ctx, const v1::RegisterRequest* req,
                                      v1::RegisterResponse* resp) override {
     return Unary(ctx, [this, req, resp] {
-      resp->set_worker_id(c_.RegisterWorker(req->name(), req->protocol_version(), req->software_version()));
+      resp->set_worker_id(c_.RegisterWorker(req->name(), req->protocol_version(), req->software_version(),
+                                            req->threads()));
       resp->set_lease_timeout_ms(c_.lease_timeout_ms());
     });
   }
@@ -581,18 +591,11 @@ FarmServer::FarmServer(Coordinator& coordinator, const ServerConfig& config) : c
   if (!server_ || (!config.listen.empty() && port_ == 0))
     throw std::runtime_error("cannot listen on " + config.listen);
 
-  if (!config.metrics_listen.empty()) {
-    const size_t colon = config.metrics_listen.rfind(':');
-    if (colon == std::string::npos) throw std::invalid_argument("--metrics-listen expects HOST:PORT");
-    std::string host = config.metrics_listen.substr(0, colon);
-    int port = std::stoi(config.metrics_listen.substr(colon + 1));
-    metrics_ = std::make_unique<httplib::Server>();
-    metrics_->Get("/metrics", [this](const httplib::Request&, httplib::Response& res) {
-      res.set_content(coordinator_.MetricsText(), "text/plain; version=0.0.4");
-    });
-    if (!metrics_->bind_to_port(host, port)) throw std::runtime_error("cannot listen on " + config.metrics_listen);
-    metrics_thread_ = std::thread([this] { metrics_->listen_after_bind(); });
-  }
+  if (!config.metrics_listen.empty())
+    metrics_ = std::make_unique<HttpServer>(coordinator_, HttpConfig{config.metrics_listen, "", false, true, ""});
+  if (!config.http_listen.empty())
+    http_ = std::make_unique<HttpServer>(
+        coordinator_, HttpConfig{config.http_listen, config.token, config.http_allow_open, false, config.bench_dir});
 }
 
 FarmServer::~FarmServer() { Shutdown(0); }
@@ -610,10 +613,8 @@ void FarmServer::Shutdown(double grace_seconds) {
                     std::chrono::milliseconds(int64_t(grace_seconds * 1000)));
   watch_hub_.reset();
   pool_->Stop();
-  if (metrics_) {
-    metrics_->stop();
-    if (metrics_thread_.joinable()) metrics_thread_.join();
-  }
+  if (metrics_) metrics_->Stop();
+  if (http_) http_->Stop();
 }
 
 }  // namespace lightfarm

@@ -12,12 +12,9 @@
 
 #include "common/farm/rpc.h"
 #include "coordinator/coordinator.h"
+#include "coordinator/dashboard.h"
 #include "lightfarm/v1/render.grpc.pb.h"
 #include "lightfarm/v1/worker.grpc.pb.h"
-
-namespace httplib {
-class Server;
-}
 
 namespace lightfarm {
 
@@ -25,7 +22,10 @@ struct ServerConfig {
   std::string listen;          // host:port; empty: in-process channels only (embedded mode)
   std::string token;           // bearer token required on every RPC; empty: no auth
   std::string tls_cert, tls_key;  // PEM files; both empty: plaintext
-  std::string metrics_listen;  // host:port for GET /metrics; empty: off
+  std::string metrics_listen;  // host:port for GET /metrics alone; empty: off
+  std::string http_listen;     // [host:]port for the dashboard, /api/v1/ and /metrics; empty: off
+  bool http_allow_open = false;  // serve the dashboard without a token on a non-loopback host
+  std::string bench_dir;       // bench results whose plots the dashboard shows
   int rpc_threads = 4;
 };
 
@@ -41,6 +41,7 @@ class FarmServer {
   // A channel to this server inside this process (embedded mode, tests).
   std::shared_ptr<grpc::Channel> InProcessChannel();
   int port() const { return port_; }
+  int http_port() const { return http_ ? http_->port() : 0; }
   // Graceful drain: health NOT_SERVING, refuse new jobs and leases, finish in-flight RPCs
   // (cancelling what is left after `grace_seconds`), stop the pool.
   void Shutdown(double grace_seconds);
@@ -54,8 +55,7 @@ class FarmServer {
   std::unique_ptr<RenderServiceImpl> render_service_;
   std::unique_ptr<WorkerServiceImpl> worker_service_;
   std::unique_ptr<grpc::Server> server_;
-  std::unique_ptr<httplib::Server> metrics_;
-  std::thread metrics_thread_;
+  std::unique_ptr<HttpServer> metrics_, http_;
   int port_ = 0;
   bool shut_down_ = false;
 };

@@ -17,9 +17,11 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev gnuplot-nox
 )
 # Only the full suite needs these: the Slurm recipes' test starts a single-node Slurm, the
-# Kubernetes manifests' test reads YAML and probes gRPC health from Python. A build of
-# chosen targets (LIGHTFARM_TARGETS, as render-example.sh does) skips them.
-[ -n "${LIGHTFARM_TARGETS:-}" ] || packages+=(slurm-wlm munge python3-yaml python3-grpcio)
+# Kubernetes manifests' test reads YAML and probes gRPC health from Python, the dashboard's test
+# drives headless Chromium, the Python client's tests install it into a venv and run pytest. A
+# build of chosen targets (LIGHTFARM_TARGETS, as render-example.sh does) skips them.
+[ -n "${LIGHTFARM_TARGETS:-}" ] || packages+=(slurm-wlm munge python3-yaml python3-grpcio
+  chromium chromium-driver python3-venv python3-pip python3-pytest python3-numpy python3-openimageio)
 
 missing=()
 for p in "${packages[@]}"; do

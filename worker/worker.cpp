@@ -7,6 +7,7 @@
 #include <fstream>
 #include <future>
 #include <random>
+#include <thread>
 
 #include <tbb/task_group.h>
 
@@ -149,7 +150,8 @@ void Worker::Register() {
     req.set_name(options_.name);
     req.set_protocol_version(options_.protocol_version);
     req.set_software_version(options_.software_version);
-    req.set_threads(options_.threads);
+    // 0 (all cores) is reported as the count it means.
+    req.set_threads(options_.threads > 0 ? options_.threads : int(std::thread::hardware_concurrency()));
     v1::RegisterResponse resp;
     grpc::ClientContext ctx;
     Prepare(&ctx, options_.rpc_timeout_s);

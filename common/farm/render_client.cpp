@@ -126,6 +126,25 @@ v1::JobStatus RenderClient::Cancel(const std::string& job_id) {
   return st;
 }
 
+v1::JobStatus RenderClient::SetPriority(const std::string& job_id, int priority) {
+  v1::SetJobPriorityRequest req;
+  req.set_job_id(job_id);
+  req.set_priority(priority);
+  grpc::ClientContext ctx;
+  Prepare(&ctx, timeout_s_);
+  v1::JobStatus st;
+  ThrowIfError(stub_->SetJobPriority(&ctx, req, &st));
+  return st;
+}
+
+std::vector<v1::WorkerStatus> RenderClient::ListWorkers() {
+  grpc::ClientContext ctx;
+  Prepare(&ctx, timeout_s_);
+  v1::ListWorkersResponse resp;
+  ThrowIfError(stub_->ListWorkers(&ctx, v1::ListWorkersRequest(), &resp));
+  return {resp.workers().begin(), resp.workers().end()};
+}
+
 v1::JobStatus RenderClient::Watch(const std::string& job_id,
                                   const std::function<void(const v1::JobStatus&)>& on_update,
                                   double max_wait_s, double preview_interval_s) {

@@ -31,6 +31,8 @@ class RenderClient {
   v1::JobStatus GetJob(const std::string& job_id);
   std::vector<v1::JobStatus> ListJobs();
   v1::JobStatus Cancel(const std::string& job_id);
+  v1::JobStatus SetPriority(const std::string& job_id, int priority);
+  std::vector<v1::WorkerStatus> ListWorkers();
   // Follows the job until it ends, calling on_update for every status; reconnects (with the
   // same overall deadline) when the coordinator goes away and comes back. With
   // preview_interval_s > 0 the statuses carry a preview PNG of the finished tiles at most that often.

@@ -1,0 +1,17 @@
+# cmake -DOUT=file.cpp -DDIR=coordinator/web -P embed.cmake: writes the dashboard's assets as C++
+# raw string literals (dashboard_assets.h declares them).
+set(body "// Generated from coordinator/web by embed.cmake; do not edit.\n")
+string(APPEND body "#include \"coordinator/web/dashboard_assets.h\"\n\nnamespace lightfarm::web {\n\n")
+foreach(pair "index.html:kIndexHtml" "login.html:kLoginHtml" "app.js:kAppJs" "style.css:kStyleCss")
+  string(REPLACE ":" ";" parts "${pair}")
+  list(GET parts 0 file)
+  list(GET parts 1 name)
+  file(READ "${DIR}/${file}" text)
+  string(FIND "${text}" ")lfweb\"" clash)
+  if(NOT clash EQUAL -1)
+    message(FATAL_ERROR "${file} contains the raw string delimiter )lfweb\"")
+  endif()
+  string(APPEND body "const char* const ${name} = R\"lfweb(${text})lfweb\";\n\n")
+endforeach()
+string(APPEND body "}  // namespace lightfarm::web\n")
+file(WRITE "${OUT}" "${body}")
