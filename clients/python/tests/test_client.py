@@ -144,3 +144,31 @@ def test_the_contact_sheet_example_renders_every_method(farm, cornell, source_di
     assert "| brute | " in table and "| 0.0000 |" in table.split("| brute |")[1].split("\n")[0]
     spec = oiio.ImageInput.open(str(out)).spec()
     assert (spec.width, spec.height) == (4 * 192, 2 * (192 + 50))  # 24 px tiles shown 8x
+
+
+def test_tls_with_a_private_ca(build_dir, tmp_path, cornell):
+    # A self-signed certificate for 127.0.0.1 is its own CA.
+    key, cert = tmp_path / "key.pem", tmp_path / "cert.pem"
+    subprocess.run(["openssl", "req", "-x509", "-newkey", "rsa:2048", "-nodes", "-days", "1", "-subj", "/CN=127.0.0.1",
+                    "-addext", "subjectAltName=IP:127.0.0.1", "-keyout", str(key), "-out", str(cert)],
+                   check=True, capture_output=True)
+    out = tmp_path / "coordinator.out"
+    coordinator = subprocess.Popen(
+        [os.path.join(build_dir, "lightfarm-coordinator"), "--listen", "127.0.0.1:0", "--state-dir", str(tmp_path / "state"),
+         "--tls-cert", str(cert), "--tls-key", str(key)], stdout=open(out, "w"), stderr=subprocess.DEVNULL)
+    try:
+        import time
+        deadline = time.time() + 30
+        while "listening on port" not in out.read_text() and time.time() < deadline:
+            time.sleep(0.05)
+        address = "127.0.0.1:" + out.read_text().split("listening on port ")[1].split()[0]
+        with lightfarm.Client(address, tls_ca=str(cert)) as c:
+            job = c.submit(cornell, method="brute", lights=100, resolution=(8, 8))
+            assert [s.job_id for s in c.list_jobs()] == [job.id]
+        with lightfarm.Client(address, timeout=5) as plain:
+            with pytest.raises(lightfarm.LightfarmError) as err:
+                plain.list_jobs()
+            assert err.value.code == grpc.StatusCode.UNAVAILABLE
+    finally:
+        coordinator.terminate()
+        coordinator.wait(timeout=15)
