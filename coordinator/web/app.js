@@ -207,6 +207,19 @@ async function jobView(view, id) {
       el("p", {id: "preview-waiting", class: "muted"}, "The preview appears when the final stage's first tiles are done."));
   }
 
+  // Per-stage progress: the stages before the current one are done, the current one has its
+  // tasks, the later ones wait (a progressive job runs them all once per pass).
+  const stages = el("table", {id: "stages"}, el("thead", {}, el("tr", {}, el("th", {}, "Stage"), el("th", {}, "Progress"))),
+    el("tbody", {}, ...Array.from({length: Math.max(1, j.stage_count)}, (_, i) => {
+      let cell;
+      if (j.state === "done" || i < j.stage) cell = [bar(1), "done"];
+      else if (i > j.stage || j.state === "queued" || j.state === "planning") cell = [bar(0), "waiting"];
+      else if (TERMINAL.has(j.state)) cell = [bar(j.tasks_total ? j.tasks_done / j.tasks_total : 0), j.state];
+      else cell = [bar(j.tasks_total ? j.tasks_done / j.tasks_total : 0), j.tasks_done + "/" + j.tasks_total + " tasks"];
+      const label = (i + 1) + (i === j.stage && j.stage_name ? " " + j.stage_name : "");
+      return el("tr", {"data-stage": i}, el("td", {}, label), el("td", {}, ...cell));
+    })));
+
   const stats = j.stats ? el("table", {id: "stats"}, ...flatten(j.stats, "", []).map(([k, v]) =>
     el("tr", {}, el("th", {}, k), el("td", {}, v)))) : null;
 
@@ -221,7 +234,8 @@ async function jobView(view, id) {
     el("h1", {}, "Job " + id + " ", el("span", {id: "job-name", class: "muted"}, j.name)),
     j.error && j.state !== "cancelled" ? el("p", {id: "job-error", class: "error"}, j.error) : null,
     controls,
-    el("div", {class: "cols"}, el("div", {}, info, benchLink, stats ? el("h2", {}, "Stats") : null, stats), image));
+    el("div", {class: "cols"}, el("div", {}, info, el("h2", {}, "Stages"), stages, benchLink,
+                                  stats ? el("h2", {}, "Stats") : null, stats), image));
 }
 
 async function workersView(view) {

@@ -169,6 +169,14 @@ def main():
         job_a = submit("--method", "brute", "--lights", "8000", "--resolution", "96x96", "--passes", "4",
                        "--name", EVIL)
         job_b = submit("--method", "brute", "--lights", "3000", "--resolution", "96x96", "--name", "second job")
+        # C: a scene with a syntax error; its page must show where.
+        broken = os.path.join(work, "broken.pbrt")
+        with open(broken, "w") as f:
+            f.write('Film "rgb" "integer xresolution" [16] "integer yresolution" [16]\nCamera "perspective"\n'
+                    'WorldBegin\nShape "sphere" "float radius" [ 1\n')
+        job_c = subprocess.run([cli, "submit", broken, "--server", server, "--token-file", os.path.join(work, "token"),
+                                "--method", "brute", "--priority", "9"], check=True, capture_output=True,
+                               text=True).stdout.strip().split()[-1]
         assert http(site + "/api/v1/jobs/" + job_b + "/cancel", method="POST",
                     headers={"Authorization": "Bearer " + TOKEN}, data=b"{}")[0] == 403
 
@@ -186,7 +194,7 @@ def main():
         wait_for("the wrong-token message", lambda: "wrong token" in driver.js("return document.body.innerText"))
         driver.type("#token", TOKEN)
         driver.click("#login")
-        wait_for("the job list", lambda: driver.js("return document.querySelectorAll('#jobs tbody tr').length") == 2)
+        wait_for("the job list", lambda: driver.js("return document.querySelectorAll('#jobs tbody tr').length") == 3)
         cookie_js = driver.js("return document.cookie")
         assert "lightfarm_session" not in cookie_js, "the session cookie must be HttpOnly"
 
@@ -205,7 +213,7 @@ def main():
             "return s === 'running' && p !== null && p.complete && p.naturalWidth === 96"), 120, 0.05)
         driver.screenshot(os.path.join(shots, "job-running.png"))
         driver.click("#nav-jobs")
-        wait_for("the job list again", lambda: driver.js("return document.querySelectorAll('#jobs tbody tr').length") == 2)
+        wait_for("the job list again", lambda: driver.js("return document.querySelectorAll('#jobs tbody tr').length") == 3)
 
         # B's page: raise its priority (it is queued behind A).
         driver.click('a[href="/jobs/%s"]' % job_b)
@@ -238,6 +246,13 @@ def main():
         assert status == 200 and exr[:4] == b"\x76\x2f\x31\x01", "the EXR link serves an OpenEXR file"
         assert driver.js("return document.getElementById('bench-link') !== null")
         driver.screenshot(os.path.join(shots, "job-done.png"))
+
+        # C's page: failed, with the scene's file:line.
+        driver.get(site + "/jobs/" + job_c)
+        wait_for("job C failed with its file:line", lambda: "broken.pbrt:4" in driver.js(
+            "const e = document.getElementById('job-error'); return e ? e.textContent : ''"))
+        assert driver.js("return document.getElementById('job-state').textContent") == "failed"
+        driver.screenshot(os.path.join(shots, "job-failed.png"))
 
         # Priority cannot change on an ended job; the API says why.
         status, body = http(site + "/api/v1/jobs/" + job_a + "/priority", method="POST",
