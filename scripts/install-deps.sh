@@ -8,7 +8,7 @@ packages=(
   build-essential cmake ninja-build pkg-config git clang libclang-rt-14-dev
   # renderer core
   libembree-dev libopenimageio-dev openimageio-tools libtbb-dev libspdlog-dev libfmt-dev
-  libeigen3-dev libcli11-dev nlohmann-json3-dev libmetis-dev libnanovdb-dev libopenvdb-dev
+  libeigen3-dev libcli11-dev nlohmann-json3-dev libmetis-dev libsvm-dev libnanovdb-dev libopenvdb-dev
   libnanoflann-dev
   # farm
   libgrpc++-dev libgrpc-dev protobuf-compiler protobuf-compiler-grpc libprotobuf-dev

@@ -123,7 +123,8 @@ Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, Ph
   // Eye-segment slices (Huo 2016, Sec. 4; segment_slicing.h): K = 0.008 × eye rays, clamped to
   // an average of [5/8, 5/4] × segment_rows_per_slice segments per slice (500–1000 for the
   // default 800, the range the paper reports); segment_refine=1 splits segments across slice
-  // boundaries and segment_merge (2.5) rejoins similar pieces (off by default: on
+  // boundaries (segment_boundary: halves, or svm as the paper) and segment_merge (2.5) rejoins
+  // similar pieces (off by default: on
   // volumetric-caustic it changed adaptive-completion's error by less than its noise with near
   // lights, and made it worse without; docs/rendering.md).
   SegmentSlicingOptions segment_slicing;
@@ -133,6 +134,10 @@ Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, Ph
     segment_slicing.max_rows_per_slice = std::max<size_t>(1, target * 5 / 4);
     segment_slicing.refine = params.GetBool("segment_refine", false);
     segment_slicing.merge_threshold = float(params.GetDouble("segment_merge", 2.5, 0.0, 4.0));
+    const std::string boundary = params.GetString("segment_boundary", "halves");
+    if (boundary != "halves" && boundary != "svm")
+      throw OptionError("--param segment_boundary=" + boundary + ": expected halves or svm");
+    segment_slicing.boundary = boundary == "svm" ? SegmentBoundary::kSvm : SegmentBoundary::kHalves;
     segment_slicing.seed = settings.seed;
   }
   // Lights particle paths leave in media: VRLs (Novák 2012; default) or medium VPLs.

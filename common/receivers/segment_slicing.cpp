@@ -7,10 +7,13 @@
 
 #include <algorithm>
 #include <array>
+#include <map>
+#include <memory>
 #include <cmath>
 #include <stdexcept>
 #include <string>
 
+#include "common/receivers/svm_boundary.h"
 #include "common/scene/phase.h"
 #include "common/util/rng.h"
 
@@ -112,12 +115,17 @@ float PhaseDifference(const SegmentFeatures& a, const SegmentFeatures& b) {
   return std::clamp(worst, 0.f, 1.f);
 }
 
-SegmentFeatures HalfFeatures(const SegmentFeatures& s, int half, float tau) {
+// The features of a piece of a segment split at fraction `at` of its length (piece 0 before it).
+SegmentFeatures PieceFeatures(const SegmentFeatures& s, int piece, float at, float tau) {
   SegmentFeatures h = s;
-  const Vec3 mid = (s.x0 + s.x1) * 0.5f;
-  if (half == 0) h.x1 = mid; else h.x0 = mid;
+  const Vec3 cut = s.x0 + (s.x1 - s.x0) * at;
+  if (piece == 0) h.x1 = cut; else h.x0 = cut;
   h.tau = tau;
   return h;
+}
+
+SegmentFeatures HalfFeatures(const SegmentFeatures& s, int half, float tau) {
+  return PieceFeatures(s, half, 0.5f, tau);
 }
 
 std::vector<uint32_t> SortedUnique(std::vector<uint32_t> v) {
@@ -198,6 +206,7 @@ SegmentSimilarityParams SimilarityParams(float scene_diagonal, const SegmentSlic
 // average (Eq. 8); a segment inside one part, or whose halves agree, is kept whole.
 struct SegmentSplit {
   bool split = false;
+  float at = 0.5f;  // where, as a fraction of the length
   uint32_t part[2] = {0, 0};
   RGB first_half_transmittance;
   float tau[2] = {1, 1};
@@ -250,6 +259,106 @@ SegmentSplit DecideSplit(const Scene& scene, const EyeSegment& seg, size_t s,
   out.first_half_transmittance = t0;
   out.tau[0] = halves[0].tau;
   out.tau[1] = halves[1].tau;
+  return out;
+}
+
+// The RBF-SVM boundaries of every pair of neighbouring parts (a < b, decision > 0 on a's side),
+// each trained on the start and end points of a's segments with a graph neighbour in b and of b's
+// with one in a (at most kMaxSvmPoints per side, evenly strided: training is superlinear).
+constexpr size_t kMaxSvmPoints = 600;
+using BoundaryMap = std::map<std::pair<uint32_t, uint32_t>, std::unique_ptr<SvmBoundary>>;
+
+BoundaryMap TrainBoundaries(const std::vector<SegmentFeatures>& f, const std::vector<uint32_t>& p,
+                            const SegmentGraph& g) {
+  std::map<std::pair<uint32_t, uint32_t>, std::array<std::vector<Vec3>, 2>> points;
+  for (size_t s = 0; s < f.size(); ++s) {
+    std::vector<uint32_t> others;
+    for (idx_t e = g.xadj[s]; e < g.xadj[s + 1]; ++e)
+      if (p[size_t(g.adjncy[size_t(e)])] != p[s]) others.push_back(p[size_t(g.adjncy[size_t(e)])]);
+    for (uint32_t o : SortedUnique(std::move(others))) {
+      const bool first = p[s] < o;
+      auto& side = points[{std::min(p[s], o), std::max(p[s], o)}][first ? 0 : 1];
+      side.push_back(f[s].x0);
+      side.push_back(f[s].x1);
+    }
+  }
+  std::vector<std::pair<std::pair<uint32_t, uint32_t>, std::array<std::vector<Vec3>, 2>>> jobs(points.begin(),
+                                                                                             points.end());
+  std::vector<std::unique_ptr<SvmBoundary>> trained(jobs.size());
+  tbb::parallel_for(size_t(0), jobs.size(), [&](size_t i) {
+    std::array<std::vector<Vec3>, 2>& sides = jobs[i].second;
+    Bounds3 box;
+    for (auto& side : sides) {
+      if (side.size() > kMaxSvmPoints) {
+        std::vector<Vec3> kept;
+        const double stride = double(side.size()) / double(kMaxSvmPoints);
+        for (size_t k = 0; k < kMaxSvmPoints; ++k) kept.push_back(side[size_t(double(k) * stride)]);
+        side = std::move(kept);
+      }
+      for (const Vec3& v : side) box.Extend(v);
+    }
+    // γ = 0.5 (the paper) relative to the boundary region's extent
+    const float scale = std::max(Length(box.Diagonal()), 1e-6f);
+    trained[i] = std::make_unique<SvmBoundary>(sides[0], sides[1], (box.lo + box.hi) * 0.5f, scale);
+  });
+  BoundaryMap out;
+  for (size_t i = 0; i < jobs.size(); ++i) out.emplace(jobs[i].first, std::move(trained[i]));
+  return out;
+}
+
+// Huo 2016, Sec. 4.2.3: where the segment crosses the boundary between its part and the
+// neighbouring part it has most graph edges to (ties: the lower part). The decision is sampled
+// at 8 points along the segment and the first sign change refined by bisection; a crossing in
+// the first or last 2% of the segment is no split.
+SegmentSplit DecideSplitSvm(const Scene& scene, const EyeSegment& seg, size_t s,
+                            const std::vector<SegmentFeatures>& f, const std::vector<uint32_t>& p,
+                            const SegmentGraph& g, const BoundaryMap& boundaries, uint64_t seed) {
+  if (seg.medium < 0 || !(seg.length > 0)) return {};
+  std::map<uint32_t, int> edges;
+  for (idx_t e = g.xadj[s]; e < g.xadj[s + 1]; ++e) {
+    const uint32_t o = p[size_t(g.adjncy[size_t(e)])];
+    if (o != p[s]) ++edges[o];
+  }
+  if (edges.empty()) return {};
+  uint32_t other = edges.begin()->first;
+  for (const auto& [part, count] : edges)
+    if (count > edges[other]) other = part;
+  const auto it = boundaries.find({std::min(p[s], other), std::max(p[s], other)});
+  if (it == boundaries.end() || !it->second->valid()) return {};
+  const SvmBoundary& svm = *it->second;
+  const double own = p[s] < other ? 1.0 : -1.0;  // the sign of the segment's own side
+  const auto side = [&](float u) { return own * svm.Decision(f[s].x0 + (f[s].x1 - f[s].x0) * u) > 0; };
+  constexpr int kSamples = 8;
+  const bool start = side(0.f);
+  float lo = 0, hi = -1;
+  for (int k = 1; k <= kSamples; ++k) {
+    const float u = float(k) / float(kSamples);
+    if (side(u) != start) {
+      lo = float(k - 1) / float(kSamples);
+      hi = u;
+      break;
+    }
+  }
+  if (hi < 0) return {};
+  for (int iter = 0; iter < 12; ++iter) {
+    const float mid = 0.5f * (lo + hi);
+    (side(mid) == start ? lo : hi) = mid;
+  }
+  const float at = 0.5f * (lo + hi);
+  if (at < 0.02f || at > 0.98f) return {};
+  const Medium& med = scene.media()[size_t(seg.medium)];
+  Rng rng(HashSeed({seed, uint64_t(RngStream::kSlicing), 3, s}));
+  const float first = at * seg.length;
+  const RGB t0 = med.Transmittance({seg.o, seg.d, first}, rng);
+  const RGB t1 = med.Transmittance({seg.o + seg.d * first, seg.d, seg.length - first}, rng);
+  SegmentSplit out;
+  out.split = true;
+  out.at = at;
+  out.part[0] = start ? p[s] : other;
+  out.part[1] = start ? other : p[s];
+  out.first_half_transmittance = t0;
+  out.tau[0] = t0.Average();
+  out.tau[1] = t1.Average();
   return out;
 }
 
@@ -360,9 +469,16 @@ size_t RefineSegmentSlices(const Scene& scene, ReceiverSet* receivers,
 
   // Decisions read only the partition before refinement: independent per segment.
   std::vector<SegmentSplit> splits(n);
-  tbb::parallel_for(size_t(0), n, [&](size_t s) {
-    splits[s] = DecideSplit(scene, receivers->segments[s], s, f, p, g, sp, options.seed);
-  });
+  if (options.boundary == SegmentBoundary::kSvm) {
+    const BoundaryMap boundaries = TrainBoundaries(f, p, g);
+    tbb::parallel_for(size_t(0), n, [&](size_t s) {
+      splits[s] = DecideSplitSvm(scene, receivers->segments[s], s, f, p, g, boundaries, options.seed);
+    });
+  } else {
+    tbb::parallel_for(size_t(0), n, [&](size_t s) {
+      splits[s] = DecideSplit(scene, receivers->segments[s], s, f, p, g, sp, options.seed);
+    });
+  }
 
   // Rebuild the segment list in the same (sample) order, halves in place of split segments.
   const std::vector<EyeSegment> old_segments = std::move(receivers->segments);
@@ -412,11 +528,12 @@ size_t RefineSegmentSlices(const Scene& scene, ReceiverSet* receivers,
     ++split_count;
     const EyeSegment& seg = old_segments[s];
     EyeSegment a = seg, b = seg;
-    a.length = b.length = 0.5f * seg.length;
+    a.length = sp_s.at * seg.length;
+    b.length = seg.length - a.length;
     b.o = seg.o + seg.d * a.length;
     b.throughput = seg.throughput * sp_s.first_half_transmittance;  // unbiased estimate
-    append(a, HalfFeatures(old_features[s], 0, sp_s.tau[0]), sp_s.part[0], true);
-    append(b, HalfFeatures(old_features[s], 1, sp_s.tau[1]), sp_s.part[1], true);
+    append(a, PieceFeatures(old_features[s], 0, sp_s.at, sp_s.tau[0]), sp_s.part[0], true);
+    append(b, PieceFeatures(old_features[s], 1, sp_s.at, sp_s.tau[1]), sp_s.part[1], true);
   }
   RecomputeSampleRanges(receivers);
   if (merged_out) *merged_out = merged;

@@ -2,8 +2,8 @@
 // of a graph whose edges link each segment to its nearest spatial neighbours, weighted by the
 // segment similarity of Eq. 8 (Eqs. 10–12 and the pixel term); a K-way partition of that graph
 // (METIS, minimising the weight of the cut edges) gives the slices of the segment rows; segments
-// that cross a slice boundary are then split and similar pieces merged again (Sec. 4.2.3, with a
-// simpler boundary classifier than the paper's SVM: see RefineSegmentSlices).
+// that cross a slice boundary are then split and similar pieces merged again (Sec. 4.2.3, with the
+// paper's RBF-SVM boundary or a simpler split-halves test: see RefineSegmentSlices).
 #pragma once
 
 #include <cstdint>
@@ -14,6 +14,13 @@
 #include "common/scene/scene.h"
 
 namespace lightfarm {
+
+// How refinement finds where a boundary segment crosses from one slice to its neighbour.
+enum class SegmentBoundary {
+  kHalves,  // split at the middle when the halves are more similar to different slices
+  kSvm,     // Huo 2016: an RBF-SVM per pair of neighbouring slices (svm_boundary.h), split
+            // where its decision changes sign along the segment
+};
 
 struct SegmentSlicingOptions {
   // Huo 2016, Sec. 4.3: K = 0.008 × the number of eye rays (camera samples with a segment) ...
@@ -32,6 +39,7 @@ struct SegmentSlicingOptions {
                                    // default is off (param segment_refine)
   float merge_threshold = 2.5f;    // Sec. 4.2.3: rejoin a new piece and its neighbour above this
                                    // Eq. 8 similarity (of 4); 0: never
+  SegmentBoundary boundary = SegmentBoundary::kHalves;  // param segment_boundary=halves|svm
   uint64_t seed = 0;
 };
 
@@ -86,9 +94,13 @@ size_t SegmentSliceCount(size_t segments, size_t eye_rays, const SegmentSlicingO
 std::vector<uint32_t> PartitionSegments(const std::vector<SegmentFeatures>& features, size_t parts,
                                         float scene_diagonal, const SegmentSlicingOptions& options);
 
-// Segment refinement (Sec. 4.2.3, simplified): a segment with graph neighbours in another part is
-// split at its middle when its two halves are more similar (mean Eq. 8 similarity to the
-// segment's neighbours in each part) to different parts; each half joins its best part. The
+// Segment refinement (Sec. 4.2.3): a segment with graph neighbours in another part is split in
+// two, each piece joining a part. With SegmentBoundary::kHalves (simplified) it is split at its
+// middle when its two halves are more similar (mean Eq. 8 similarity to the segment's neighbours
+// in each part) to different parts. With kSvm (the paper's), an RBF-SVM is trained for each pair
+// of neighbouring parts on the start and end points of their boundary segments, and a segment is
+// split where the decision between its part and the neighbouring part it has most graph edges to
+// changes sign along it (bisection); the piece beyond goes to that part. The
 // halves replace the segment in `receivers` (same camera sample, contiguous, the second half's
 // throughput includes the first half's transmittance), so CameraSample::first_segment/
 // segment_count stay valid and the total length per sample is unchanged. Then the paper's merge

@@ -10,6 +10,8 @@
 
 #include "common/image/filter.h"
 #include "common/receivers/segment_slicing.h"
+#include "common/receivers/svm_boundary.h"
+#include "common/util/rng.h"
 #include "tests/common/test_util.h"
 
 namespace lightfarm {
@@ -200,7 +202,7 @@ TEST(SegmentSlicing, ConsecutiveSegmentsOfARayMostlyShareASlice) {
 
 // Split and merge (threshold 2.5, and 0: split only) keep every ray's length, order and pieces
 // contiguous; the segment count changes by splits − merges.
-class SegmentRefinement : public ::testing::TestWithParam<float> {};
+class SegmentRefinement : public ::testing::TestWithParam<std::tuple<float, SegmentBoundary>> {};
 
 TEST_P(SegmentRefinement, KeepsEachSamplesLengthAndContiguity) {
   const std::unique_ptr<Scene> scene = FogScene(24);
@@ -208,7 +210,8 @@ TEST_P(SegmentRefinement, KeepsEachSamplesLengthAndContiguity) {
   ReceiverSet after = before;
   const float diagonal = Length(scene->bounds().Diagonal());
   SegmentSlicingOptions o = SmallSlices();
-  o.merge_threshold = GetParam();
+  o.merge_threshold = std::get<0>(GetParam());
+  o.boundary = std::get<1>(GetParam());
   std::vector<SegmentFeatures> features = ComputeSegmentFeatures(*scene, after, 7);
   std::vector<uint32_t> part = PartitionSegments(features, 6, diagonal, o);
   size_t merged = 0;
@@ -253,7 +256,9 @@ TEST_P(SegmentRefinement, KeepsEachSamplesLengthAndContiguity) {
   }
 }
 
-INSTANTIATE_TEST_SUITE_P(MergeThreshold, SegmentRefinement, ::testing::Values(2.5f, 0.f));
+INSTANTIATE_TEST_SUITE_P(MergeThresholdAndBoundary, SegmentRefinement,
+                         ::testing::Combine(::testing::Values(2.5f, 0.f),
+                                            ::testing::Values(SegmentBoundary::kHalves, SegmentBoundary::kSvm)));
 
 // Nothing is as similar as 4 (the sum of four terms in [0, 1] for distinct pieces): no merges.
 TEST(SegmentSlicing, MergeThresholdAboveTheLargestSimilarityNeverMerges) {
@@ -286,6 +291,83 @@ TEST(SegmentSlicing, SplitHalvesCarryTheTransmittanceOfTheFirstHalf) {
     if (a.sample != b.sample || a.length != b.length) continue;  // split halves are equal
     const float expected = a.throughput.g * std::exp(-sigma_t * a.length);
     EXPECT_NEAR(b.throughput.g, expected, 1e-4f * a.throughput.g);
+    ++checked;
+  }
+  EXPECT_GT(checked, 0u);
+}
+
+// The RBF kernel separates what no plane can: points inside a sphere from a shell around it.
+TEST(SvmBoundary, SeparatesASphereFromTheShellAroundIt) {
+  Rng rng(5);
+  const auto point_at = [&](float r_lo, float r_hi) {
+    Vec3 d;
+    do {
+      d = Vec3(2 * rng.Uniform() - 1, 2 * rng.Uniform() - 1, 2 * rng.Uniform() - 1);
+    } while (LengthSquared(d) > 1 || LengthSquared(d) < 1e-4f);
+    return Normalize(d) * (r_lo + (r_hi - r_lo) * rng.Uniform()) + Vec3(3, -2, 7);
+  };
+  std::vector<Vec3> inside, outside;
+  for (int i = 0; i < 300; ++i) {
+    inside.push_back(point_at(0, 1));
+    outside.push_back(point_at(1.6f, 2.2f));
+  }
+  const SvmBoundary svm(inside, outside, Vec3(3, -2, 7), 4.4f);
+  ASSERT_TRUE(svm.valid());
+  EXPECT_GT(svm.support_vectors(), 3u);
+  int right = 0;
+  for (int i = 0; i < 200; ++i) {
+    right += svm.Decision(point_at(0, 0.9f)) > 0;
+    right += svm.Decision(point_at(1.7f, 2.1f)) < 0;
+  }
+  EXPECT_GE(right, 392) << "of 400 held-out points";
+  // Nothing to separate: no model, decision 0.
+  const SvmBoundary empty(inside, {}, Vec3(0, 0, 0), 1.f);
+  EXPECT_FALSE(empty.valid());
+  EXPECT_EQ(empty.Decision(Vec3(3, -2, 7)), 0.0);
+}
+
+// The SVM refinement trains one boundary per pair of neighbouring slices in parallel: the same
+// segments and slices whatever the thread count.
+TEST(SegmentSlicing, SvmRefinementIsDeterministicWhateverTheThreadCount) {
+  const std::unique_ptr<Scene> scene = FogScene(24);
+  SegmentSlicingOptions o = SmallSlices();
+  o.boundary = SegmentBoundary::kSvm;
+  const auto slice = [&](int threads, std::vector<Slice>* slices) {
+    tbb::global_control c(tbb::global_control::max_allowed_parallelism, size_t(threads));
+    ReceiverSet receivers = FogReceivers(*scene);
+    *slices = SliceSegments(*scene, &receivers, o);
+    return receivers;
+  };
+  std::vector<Slice> one, two;
+  const ReceiverSet a = slice(1, &one), b = slice(2, &two);
+  ASSERT_EQ(a.segments.size(), b.segments.size());
+  for (size_t s = 0; s < a.segments.size(); ++s) {
+    EXPECT_EQ(a.segments[s].length, b.segments[s].length) << s;
+    EXPECT_EQ(a.segments[s].throughput.g, b.segments[s].throughput.g) << s;
+  }
+  ASSERT_EQ(one.size(), two.size());
+  for (size_t k = 0; k < one.size(); ++k) EXPECT_EQ(one[k].rows, two[k].rows) << k;
+}
+
+// The SVM's pieces are cut anywhere along a segment, so each piece after a cut must carry the
+// transmittance of everything before it on its ray, as the receiver generator gives it: in the
+// homogeneous fog, throughput(next) = throughput(prev) · exp(−σ_t · length(prev)).
+TEST(SegmentSlicing, SvmPiecesCarryTheTransmittanceBeforeTheirCut) {
+  const std::unique_ptr<Scene> scene = FogScene(24);
+  ReceiverSet receivers = FogReceivers(*scene);
+  const size_t before = receivers.segments.size();
+  SegmentSlicingOptions o = SmallSlices();
+  o.boundary = SegmentBoundary::kSvm;
+  o.merge_threshold = 0;
+  SliceSegments(*scene, &receivers, o);
+  ASSERT_GT(receivers.segments.size(), before);
+  const float sigma_t = 0.04f;
+  size_t checked = 0;
+  for (size_t s = 0; s + 1 < receivers.segments.size(); ++s) {
+    const EyeSegment& a = receivers.segments[s];
+    const EyeSegment& b = receivers.segments[s + 1];
+    if (a.sample != b.sample || Distance(a.o + a.d * a.length, b.o) > 1e-3f) continue;
+    EXPECT_NEAR(b.throughput.g, a.throughput.g * std::exp(-sigma_t * a.length), 1e-4f * a.throughput.g);
     ++checked;
   }
   EXPECT_GT(checked, 0u);
