@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Starts a coordinator and N workers on this machine (used by CI and for trying the farm).
 #   deploy/local/start.sh [--workers N] [--port P] [--run-dir DIR] [--token-file F] [--lease-timeout S]
-# Prints the coordinator address; pids and logs are in the run dir; stop with deploy/local/stop.sh.
+# Prints the coordinator address; the dashboard is at http://127.0.0.1:P+2/ (log line "dashboard");
+# pids and logs are in the run dir; stop with deploy/local/stop.sh.
 set -euo pipefail
 root=$(cd "$(dirname "$0")/../.." && pwd)
 bin=${LIGHTFARM_BIN:-$root/build}
@@ -22,7 +23,8 @@ auth=()
 [ -n "$token_file" ] && auth=(--token-file "$token_file")
 
 "$bin/lightfarm-coordinator" --listen "127.0.0.1:$port" --state-dir "$run_dir/state" \
-  --metrics-listen "127.0.0.1:$((port + 1))" --lease-timeout "$lease" "${auth[@]}" \
+  --metrics-listen "127.0.0.1:$((port + 1))" --http-listen "127.0.0.1:$((port + 2))" \
+  --lease-timeout "$lease" "${auth[@]}" \
   >"$run_dir/logs/coordinator.out" 2>"$run_dir/logs/coordinator.log" &
 echo $! >"$run_dir/coordinator.pid"
 # Wait until it listens (it prints the port).
@@ -36,4 +38,5 @@ for i in $(seq "$workers"); do
     --cache-dir "$run_dir/cache-$i" "${auth[@]}" >"$run_dir/logs/worker-$i.out" 2>"$run_dir/logs/worker-$i.log" &
   echo $! >"$run_dir/worker-$i.pid"
 done
+echo "dashboard: http://127.0.0.1:$((port + 2))/" >&2
 echo "127.0.0.1:$port"

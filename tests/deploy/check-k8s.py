@@ -24,6 +24,8 @@ import subprocess
 import sys
 import tempfile
 import time
+import urllib.error
+import urllib.request
 
 import grpc
 import yaml
@@ -91,6 +93,15 @@ def check_structure(docs):
     return by_kind
 
 
+def http_status(url, headers=None):
+    req = urllib.request.Request(url, headers=headers or {})
+    try:
+        with urllib.request.urlopen(req, timeout=10) as r:
+            return r.status
+    except urllib.error.HTTPError as e:
+        return e.code
+
+
 def free_port():
     s = socket.socket()
     s.bind(("127.0.0.1", 0))
@@ -155,6 +166,9 @@ def run_pods(build, by_kind, tmp):
     args = replace_arg(args, "--state-dir", os.path.join(tmp, "state"))
     args = replace_arg(args, "--token-file", token)
     args = replace_arg(args, "--metrics-listen", f"127.0.0.1:{free_port()}")
+    http_port = free_port()
+    check("--http-listen" in args, "the coordinator serves no dashboard (--http-listen)")
+    args = replace_arg(args, "--http-listen", f"127.0.0.1:{http_port}")
     procs = []
     log = open(os.path.join(tmp, "coordinator.log"), "w")
     procs.append(subprocess.Popen([os.path.join(build, c["command"][0])] + args, stdout=log, stderr=log))
@@ -169,6 +183,11 @@ def run_pods(build, by_kind, tmp):
         check(answer == b"\x08\x01", f"the gRPC probe's health check got {answer!r}, not SERVING")
         check(list_jobs_code(address) == grpc.StatusCode.UNAUTHENTICATED,
               "a call without the token was not refused (the probe would pass for the wrong reason)")
+        # The dashboard Service port: the pod's token guards it too.
+        jobs = f"http://127.0.0.1:{http_port}/api/v1/jobs"
+        check(http_status(jobs) == 401, "the dashboard answered without the token")
+        check(http_status(jobs, {"Authorization": "Bearer k8s-test-token"}) == 200,
+              "the dashboard refused the pod's token")
         worker_logs = []
         for i in range(3):
             wargs = replace_arg(w["args"], "--coordinator", address)
