@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 #include <map>
 #include <nlohmann/json.hpp>
 
@@ -361,7 +362,18 @@ void HttpServer::Routes() {
       const JobResult result = c_.GetResult(req.matches[1]);
       res.set_header("Content-Disposition",
                      "attachment; filename=\"lightfarm-job-" + std::string(req.matches[1]) + ".exr\"");
-      res.set_content(ReadFile(result.exr_path), "image/x-exr");
+      // Streamed from the blob store: a result can be gigabytes.
+      auto file = std::make_shared<std::ifstream>(result.exr_path, std::ios::binary);
+      if (!*file) throw FarmError(FarmError::Code::kNotFound, "cannot read the result of job " + std::string(req.matches[1]));
+      res.set_content_provider(size_t(fs::file_size(result.exr_path)), "image/x-exr",
+                               [file](size_t offset, size_t length, httplib::DataSink& sink) {
+                                 std::string chunk(std::min<size_t>(length, 1 << 20), '\0');
+                                 file->seekg(std::streamoff(offset));
+                                 file->read(chunk.data(), std::streamsize(chunk.size()));
+                                 if (file->gcount() <= 0) return false;
+                                 sink.write(chunk.data(), size_t(file->gcount()));
+                                 return true;
+                               });
     });
   });
   const auto require_intent = [](const httplib::Request& req, httplib::Response& res) {
