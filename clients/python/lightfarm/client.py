@@ -217,8 +217,11 @@ class Client:
         manifest = types_pb2.SceneManifest(root=os.path.relpath(files[0], base).replace(os.sep, "/"))
         path_of = {}
         for f in files:
+            digest = hashlib.sha256()
             with open(f, "rb") as fh:
-                sha = hashlib.sha256(fh.read()).hexdigest()
+                for block in iter(lambda: fh.read(CHUNK_BYTES), b""):
+                    digest.update(block)
+            sha = digest.hexdigest()
             manifest.files.add(path=os.path.relpath(f, base).replace(os.sep, "/"), sha256=sha)
             path_of[sha] = f
         missing = self._call("FindMissingBlobs", render_pb2.FindMissingBlobsRequest(sha256=list(path_of)))
