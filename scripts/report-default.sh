@@ -1,0 +1,127 @@
+#!/usr/bin/env bash
+# Generates docs/default-vs-path.md: what a user gets from `lightfarm render SCENE` with no
+# options (method auto, the scene's Film resolution, 10000 lights) against the path tracer given
+# the same time, on every shared scene, both measured against the truth. Every number comes from
+# a command this script runs; never edit the output.
+#
+# The path tracer's equal-time run: `path` at 1 and 4 spp gives its fixed cost and its cost per
+# sample; the spp that fills the default render's time is rendered (once more, rescaled, when it
+# missed that time by more than 10%) and its actual time reported.
+# Truth: the scene's reference.exr (area-averaged when its resolution differs), except where that
+# image does not show what the file describes (veach-mis, volumetric-caustic:
+# docs/reference-accuracy.md); there `path` renders progressively until its noise is below 1% or
+# LIGHTFARM_TRUTH_SECONDS (default 600) pass, and the table states the noise it reached.
+#
+# Usage: scripts/report-default.sh [SCENE_NAME...]   (default: every scene under $LIGHTFARM_SHARED)
+# LIGHTFARM_REUSE_RUNS=1 keeps the renders a previous run left in build/default-runs/ and only
+# measures and writes the table again.
+set -euo pipefail
+root=$(cd "$(dirname "$0")/.." && pwd)
+shared=${LIGHTFARM_SHARED:-$(cd "$root/.." && pwd)/shared}
+build=${LIGHTFARM_BUILD:-$root/build}
+bash "$root/scripts/build.sh" "$build" >/dev/null
+lf="$build/lightfarm"
+runs="$build/default-runs"
+truth_s=${LIGHTFARM_TRUTH_SECONDS:-600}
+mkdir -p "$runs"
+scenes=("$@")
+if [ ${#scenes[@]} -eq 0 ]; then
+  for d in "$shared"/scenes/*/; do scenes+=("$(basename "$d")"); done
+fi
+
+# Renders unless LIGHTFARM_REUSE_RUNS=1 and the run's stats exist (the last argument pair is
+# --stats FILE).
+render() {
+  local stats="${*: -1}"
+  if [ "${LIGHTFARM_REUSE_RUNS:-0}" = 1 ] && [ -f "$stats" ]; then return 0; fi
+  "$lf" render "$@"
+}
+json() { /usr/bin/python3 -c "import json,sys; d=json.load(open(sys.argv[1])); print(eval(sys.argv[2], {'d': d}))" "$@"; }
+error() { "$lf" compare --resize --json "$1" "$2" | /usr/bin/python3 -c "import json,sys; d=json.load(sys.stdin); print(d['rel_l1'], d['rel_l2'])"; }
+
+rows=()
+for name in "${scenes[@]}"; do
+  scene="$shared/scenes/$name/scene.pbrt"
+  w="$runs/$name"
+  mkdir -p "$w"
+  echo "default-vs-path: $name" >&2
+  render "$scene" --quiet --out "$w/default.exr" --stats "$w/default.json"
+  t_default=$(json "$w/default.json" "d['time']['total_s']")
+  method=$(json "$w/default.json" "d['method']")
+  rule=$(json "$w/default.json" "d.get('method_rule', '')")
+  res=$(json "$w/default.json" "'%dx%d' % tuple(d['resolution'])")
+  lights=$(json "$w/default.json" "d['lights']['total']")
+  spp=$(json "$w/default.json" "d['spp']")
+
+  case "$name" in
+    veach-mis|volumetric-caustic)
+      if [ ! -f "$w/truth.exr" ]; then
+        render "$scene" --quiet --method path --seed 7 --until-noise 0.01 --time-limit "$truth_s" \
+          --out "$w/truth.exr" --stats "$w/truth.json"
+      fi
+      truth="$w/truth.exr"
+      truth_label=$(json "$w/truth.json" "'path-traced here (\`--method path --until-noise 0.01 --time-limit $truth_s\`): %d passes x %d spp in %.0f s; relative standard error of its image mean %.4f, of its 90th-percentile pixel %.3f' % (d['passes'], d['spp'], sum(d['pass_times_s']), d['noise']['rel_stderr'], d['noise']['p90_rel_stderr'])") ;;
+    *)
+      truth="$shared/scenes/$name/reference.exr"
+      truth_label="reference.exr" ;;
+  esac
+  read -r e_default e2_default < <(error "$truth" "$w/default.exr")
+
+  # Path's cost model from 1 and 4 spp, then its equal-time run.
+  render "$scene" --quiet --method path --spp 1 --seed 3 --out "$w/path1.exr" --stats "$w/path1.json"
+  render "$scene" --quiet --method path --spp 4 --seed 3 --out "$w/path4.exr" --stats "$w/path4.json"
+  t1=$(json "$w/path1.json" "d['time']['total_s']")
+  t4=$(json "$w/path4.json" "d['time']['total_s']")
+  path_spp=$(/usr/bin/python3 -c "
+per = max(($t4 - $t1) / 3, 1e-6); fixed = max($t1 - per, 0)
+print(max(1, min(65536, int(($t_default - fixed) / per))))")
+  render "$scene" --quiet --method path --spp "$path_spp" --seed 3 --out "$w/path.exr" --stats "$w/path.json"
+  [ "${LIGHTFARM_REUSE_RUNS:-0}" = 1 ] && path_spp=$(json "$w/path.json" "d['spp']")
+  t_path=$(json "$w/path.json" "d['time']['total_s']")
+  # The model is linear; when the run missed the default's time by more than 10%, the spp is
+  # rescaled by the measured ratio and rendered once more.
+  rescaled=$(/usr/bin/python3 -c "
+r = $t_default / max($t_path, 1e-6)
+print(max(1, min(65536, round($path_spp * r))) if abs(r - 1) > 0.1 else 0)")
+  if [ "$rescaled" -gt 0 ] && [ "${LIGHTFARM_REUSE_RUNS:-0}" != 1 ]; then
+    path_spp=$rescaled
+    "$lf" render "$scene" --quiet --method path --spp "$path_spp" --seed 3 --out "$w/path.exr" --stats "$w/path.json"
+    t_path=$(json "$w/path.json" "d['time']['total_s']")
+  fi
+  read -r e_path e2_path < <(error "$truth" "$w/path.exr")
+  rows+=("$name|$res|$method|$rule|$lights|$spp|$t_default|$e_default|$e2_default|$path_spp|$t_path|$e_path|$e2_path|$truth_label")
+done
+
+out="$root/docs/default-vs-path.md"
+printf '%s\n' "${rows[@]}" >"$runs/rows.txt"
+/usr/bin/python3 - "$out" "$(git -C "$root" rev-parse --short HEAD)$(git -C "$root" diff --quiet || echo +uncommitted)" "$(nproc)" "$runs/rows.txt" <<'EOF'
+import sys, datetime
+out, commit, cores, rows = sys.argv[1:5]
+lines = [l.split("|") for l in open(rows).read().splitlines() if l]
+md = ["# The default render against the path tracer at equal time", "",
+      f"Generated by `scripts/report-default.sh` on {datetime.datetime.utcnow():%Y-%m-%dT%H:%MZ} at commit `{commit}` "
+      f"on {cores} cores. Never edit the numbers: re-run the script.", "",
+      "What a user gets from `lightfarm render SCENE` with no options (method `auto`, the scene's Film "
+      "resolution, 10000 lights, 1 camera sample per pixel for the many-light methods), against `path` "
+      "given the same time. The path tracer's samples per pixel fill the default render's time "
+      "(its cost from 1 and 4 spp), and its actual time is shown. Both are measured against the truth: "
+      "`rel_l1` = ‖truth − image‖₁ / ‖truth‖₁ and `rel_l2` over all pixel channels. `ratio` is path's "
+      "rel_l1 over the default's: above 1 the default is closer to the truth at equal time.", "",
+      "| scene | resolution | default: method (auto's rule) | lights | time | rel_l1 | rel_l2 | path spp | path time | path rel_l1 | path rel_l2 | ratio | verdict |",
+      "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+notes = []
+for (name, res, method, rule, lights, spp, t, e, e2, pspp, tp, ep, ep2, truth) in lines:
+    ratio = float(ep) / max(float(e), 1e-12)
+    verdict = "default wins" if ratio > 1.1 else ("path wins" if ratio < 1 / 1.1 else "level")
+    md.append(f"| {name} | {res} | {method} ({rule}) | {lights} | {float(t):.1f} s | {float(e):.4f} | {float(e2):.4f} | "
+              f"{pspp} | {float(tp):.1f} s | {float(ep):.4f} | {float(ep2):.4f} | {ratio:.2f} | {verdict} |")
+    notes.append(f"- {name}: truth {truth}.")
+md += ["", "`level`: within 10%. The verdict is on rel_l1; rel_l2 weighs the brightest pixels most "
+       "(a visible light's edges, which one camera sample per pixel aliases), so read both. Truths:", ""] + notes + ["",
+       "A path-traced truth carries its own noise (stated above): per pixel it is far above the image mean's, "
+       "and it adds to both columns' errors alike. "
+       "Times are wall times of the whole render in one process on this shared machine, one run each. "
+       "The path tracer renders with a fixed seed (3); the truth with another (7)."]
+open(out, "w").write("\n".join(md) + "\n")
+print("\n".join(md))
+EOF
