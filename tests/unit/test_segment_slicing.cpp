@@ -274,28 +274,6 @@ TEST(SegmentSlicing, MergeThresholdAboveTheLargestSimilarityNeverMerges) {
   EXPECT_EQ(merged, 0u);
 }
 
-// In a homogeneous medium a split segment's second half carries the first half's transmittance
-// (closed form): the pieces' throughputs are those the receiver generator would have given.
-TEST(SegmentSlicing, SplitHalvesCarryTheTransmittanceOfTheFirstHalf) {
-  const std::unique_ptr<Scene> scene = FogScene(24);
-  ReceiverSet receivers = FogReceivers(*scene);
-  const size_t before = receivers.segments.size();
-  SegmentSlicingOptions o = SmallSlices();
-  const std::vector<Slice> slices = SliceSegments(*scene, &receivers, o);
-  ASSERT_GT(receivers.segments.size(), before);
-  const float sigma_t = 0.04f;
-  size_t checked = 0;
-  for (size_t s = 0; s + 1 < receivers.segments.size(); ++s) {
-    const EyeSegment& a = receivers.segments[s];
-    const EyeSegment& b = receivers.segments[s + 1];
-    if (a.sample != b.sample || a.length != b.length) continue;  // split halves are equal
-    const float expected = a.throughput.g * std::exp(-sigma_t * a.length);
-    EXPECT_NEAR(b.throughput.g, expected, 1e-4f * a.throughput.g);
-    ++checked;
-  }
-  EXPECT_GT(checked, 0u);
-}
-
 // The RBF kernel separates what no plane can: points inside a sphere from a shell around it.
 TEST(SvmBoundary, SeparatesASphereFromTheShellAroundIt) {
   Rng rng(5);
@@ -349,15 +327,17 @@ TEST(SegmentSlicing, SvmRefinementIsDeterministicWhateverTheThreadCount) {
   for (size_t k = 0; k < one.size(); ++k) EXPECT_EQ(one[k].rows, two[k].rows) << k;
 }
 
-// The SVM's pieces are cut anywhere along a segment, so each piece after a cut must carry the
-// transmittance of everything before it on its ray, as the receiver generator gives it: in the
-// homogeneous fog, throughput(next) = throughput(prev) · exp(−σ_t · length(prev)).
-TEST(SegmentSlicing, SvmPiecesCarryTheTransmittanceBeforeTheirCut) {
+// A piece after a cut (at the middle, or wherever the SVM puts it) carries the transmittance of
+// everything before it on its ray, as the receiver generator gives it: in the homogeneous fog,
+// throughput(next) = throughput(prev) · exp(−σ_t · length(prev)) for every contiguous pair.
+class SplitPieces : public ::testing::TestWithParam<SegmentBoundary> {};
+
+TEST_P(SplitPieces, CarryTheTransmittanceBeforeTheirCut) {
   const std::unique_ptr<Scene> scene = FogScene(24);
   ReceiverSet receivers = FogReceivers(*scene);
   const size_t before = receivers.segments.size();
   SegmentSlicingOptions o = SmallSlices();
-  o.boundary = SegmentBoundary::kSvm;
+  o.boundary = GetParam();
   o.merge_threshold = 0;
   SliceSegments(*scene, &receivers, o);
   ASSERT_GT(receivers.segments.size(), before);
@@ -372,6 +352,8 @@ TEST(SegmentSlicing, SvmPiecesCarryTheTransmittanceBeforeTheirCut) {
   }
   EXPECT_GT(checked, 0u);
 }
+
+INSTANTIATE_TEST_SUITE_P(Boundary, SplitPieces, ::testing::Values(SegmentBoundary::kHalves, SegmentBoundary::kSvm));
 
 }  // namespace test_segment_slicing
 }  // namespace lightfarm
