@@ -76,10 +76,7 @@ v1::SceneManifest RenderClient::UploadScene(const std::string& scene_path, bool 
     path_of[sf->sha256()] = f.string();
     query.add_sha256(sf->sha256());
   }
-  grpc::ClientContext ctx;
-  Prepare(&ctx, timeout_s_);
-  v1::FindMissingBlobsResponse missing;
-  ThrowIfError(stub_->FindMissingBlobs(&ctx, query, &missing));
+  const v1::FindMissingBlobsResponse missing = Call(&v1::RenderService::Stub::FindMissingBlobs, query);
   for (const std::string& sha : missing.missing()) UploadBlob(ReadFile(path_of.at(sha)));
   return manifest;
 }
@@ -91,57 +88,35 @@ std::string RenderClient::Submit(const v1::SceneManifest& scene, const RenderSet
   *req.mutable_settings() = ToProto(settings);
   req.set_priority(priority);
   req.set_name(name);
-  grpc::ClientContext ctx;
-  Prepare(&ctx, timeout_s_);
-  v1::SubmitJobResponse resp;
-  ThrowIfError(stub_->SubmitJob(&ctx, req, &resp));
-  return resp.job_id();
+  return Call(&v1::RenderService::Stub::SubmitJob, req).job_id();
 }
 
 v1::JobStatus RenderClient::GetJob(const std::string& job_id) {
   v1::GetJobRequest req;
   req.set_job_id(job_id);
-  grpc::ClientContext ctx;
-  Prepare(&ctx, timeout_s_);
-  v1::JobStatus st;
-  ThrowIfError(stub_->GetJob(&ctx, req, &st));
-  return st;
+  return Call(&v1::RenderService::Stub::GetJob, req);
 }
 
 std::vector<v1::JobStatus> RenderClient::ListJobs() {
-  grpc::ClientContext ctx;
-  Prepare(&ctx, timeout_s_);
-  v1::ListJobsResponse resp;
-  ThrowIfError(stub_->ListJobs(&ctx, v1::ListJobsRequest(), &resp));
+  const v1::ListJobsResponse resp = Call(&v1::RenderService::Stub::ListJobs, v1::ListJobsRequest());
   return {resp.jobs().begin(), resp.jobs().end()};
 }
 
 v1::JobStatus RenderClient::Cancel(const std::string& job_id) {
   v1::GetJobRequest req;
   req.set_job_id(job_id);
-  grpc::ClientContext ctx;
-  Prepare(&ctx, timeout_s_);
-  v1::JobStatus st;
-  ThrowIfError(stub_->CancelJob(&ctx, req, &st));
-  return st;
+  return Call(&v1::RenderService::Stub::CancelJob, req);
 }
 
 v1::JobStatus RenderClient::SetPriority(const std::string& job_id, int priority) {
   v1::SetJobPriorityRequest req;
   req.set_job_id(job_id);
   req.set_priority(priority);
-  grpc::ClientContext ctx;
-  Prepare(&ctx, timeout_s_);
-  v1::JobStatus st;
-  ThrowIfError(stub_->SetJobPriority(&ctx, req, &st));
-  return st;
+  return Call(&v1::RenderService::Stub::SetJobPriority, req);
 }
 
 std::vector<v1::WorkerStatus> RenderClient::ListWorkers() {
-  grpc::ClientContext ctx;
-  Prepare(&ctx, timeout_s_);
-  v1::ListWorkersResponse resp;
-  ThrowIfError(stub_->ListWorkers(&ctx, v1::ListWorkersRequest(), &resp));
+  const v1::ListWorkersResponse resp = Call(&v1::RenderService::Stub::ListWorkers, v1::ListWorkersRequest());
   return {resp.workers().begin(), resp.workers().end()};
 }
 

@@ -44,6 +44,16 @@ class RenderClient {
 
  private:
   void Prepare(grpc::ClientContext* ctx, double timeout_s) const;
+  // One unary RenderService call with the token and the default deadline; throws on error.
+  template <typename Req, typename Resp>
+  Resp Call(grpc::Status (v1::RenderService::Stub::*rpc)(grpc::ClientContext*, const Req&, Resp*),
+            const Req& req) const {
+    grpc::ClientContext ctx;
+    Prepare(&ctx, timeout_s_);
+    Resp resp;
+    ThrowIfError((stub_.get()->*rpc)(&ctx, req, &resp));
+    return resp;
+  }
   std::unique_ptr<v1::RenderService::Stub> stub_;
   std::string token_;
   double timeout_s_;
