@@ -96,6 +96,17 @@ void ApplySharpSplit(const RenderSettings& settings, Plan* plan) {
   if (!plan->method->renders_film()) plan->scene->SetSharpAlpha(SharpAlpha(plan->matrix_options, settings.lights));
 }
 
+// Camera-side supersampling by default only when a camera path can collect something by itself:
+// it can see an emitter (an area light, an environment) or take emitter samples at a sharp
+// vertex. Then the pixels the pilot marks (a visible light's edge, a light's reflection in a
+// sharp lobe) get 256 more camera paths: a few rays each, against the hundreds to thousands of
+// shadow rays of one receiver's gather. docs/default-vs-path.md measures the effect.
+int CameraPathsFor(const Scene& scene, const Effects& effects) {
+  bool sharp = false;
+  for (const Material& m : scene.materials()) sharp = sharp || HasSharpLobe(m);
+  return effects.area_lights || effects.environment || sharp ? kDefaultCameraPaths : 0;
+}
+
 // The light tree (when the method needs one) and the matrix over the plan's receivers and lights.
 void AttachMatrix(const RenderSettings& settings, Plan* plan) {
   if (plan->method->renders_film()) {
@@ -140,6 +151,9 @@ Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, Ph
     segment_slicing.boundary = boundary == "svm" ? SegmentBoundary::kSvm : SegmentBoundary::kHalves;
     segment_slicing.seed = settings.seed;
   }
+  // Camera-side paths per pixel (receivers.h, ReceiverOptions::camera_paths); -1: the default
+  // the scene calls for (CameraPathsFor).
+  const int camera_paths = params.Has("camera_paths") ? int(params.GetInt("camera_paths", 0, 0, 4096)) : -1;
   // Lights particle paths leave in media: VRLs (Novák 2012; default) or medium VPLs.
   const std::string media_lights_name = params.GetString("media_lights", "vrl");
   if (media_lights_name != "vrl" && media_lights_name != "vpl")
@@ -209,6 +223,7 @@ Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, Ph
   ropt.max_depth = scene.hints().max_depth;
   ropt.segments_per_ray = media_rows ? segments_per_ray : -1;
   ropt.sharp_samples = plan.matrix_options.sharp_samples;
+  ropt.camera_paths = camera_paths >= 0 ? camera_paths : CameraPathsFor(scene, plan.effects);
   *plan.receivers = GenerateReceivers(scene, filter_sampler, ropt);
   timer.End("receivers");
   // Segment slices before anything refers to the segments: refinement may split some of them.
@@ -404,6 +419,9 @@ nlohmann::json MakeStats(const Plan& plan, const RenderSettings& settings,
   s["receivers"] = {{"points", plan.receivers->points.size()},
                     {"segments", plan.receivers->segments.size()},
                     {"camera_samples", plan.receivers->samples.size()},
+                    {"camera_paths", plan.receivers->stats.camera_paths},
+                    {"camera_pilot_paths", plan.receivers->stats.camera_pilot_paths},
+                    {"camera_active_pixels", plan.receivers->stats.camera_active_pixels},
                     {"specular_bounces", plan.receivers->stats.specular_bounces},
                     {"escaped", plan.receivers->stats.escaped},
                     {"transmittance_evals", plan.receivers->stats.transmittance_evals}};

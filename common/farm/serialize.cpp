@@ -215,7 +215,8 @@ Bytes SerializeReceiverSet(const ReceiverSet& set) {
   w.U32(uint32_t(set.height));
   w.U32(uint32_t(set.spp));
   for (size_t v : {set.stats.camera_rays, set.stats.specular_bounces, set.stats.escaped,
-                   set.stats.nonfinite_rays})
+                   set.stats.nonfinite_rays, set.stats.camera_paths, set.stats.camera_pilot_paths,
+                   set.stats.camera_active_pixels})
     w.U64(v);
   w.U64(set.samples.size());
   for (const CameraSample& c : set.samples) {
@@ -260,7 +261,8 @@ ReceiverSet DeserializeReceiverSet(ByteView bytes) {
   set.height = int(height);
   set.spp = int(spp);
   for (size_t* v : {&set.stats.camera_rays, &set.stats.specular_bounces, &set.stats.escaped,
-                    &set.stats.nonfinite_rays})
+                    &set.stats.nonfinite_rays, &set.stats.camera_paths, &set.stats.camera_pilot_paths,
+                    &set.stats.camera_active_pixels})
     *v = size_t(r.U64());
   const uint64_t pixels = uint64_t(width) * height;
   set.samples.resize(r.Count(kSampleBytes));

@@ -254,6 +254,49 @@ ReceiverSet GenerateReceivers(const Scene& scene, const FilterSampler& filter,
     }
   if (sharp_lights && sharp_lights->empty()) sharp_lights.reset();
 
+  // Camera-side pilot: where the light camera paths collect by themselves varies (a light's
+  // edge, a sharp lobe's highlight, emitter samples at a sharp vertex). Its paths use their own
+  // stream and never enter the image, so the choice it makes is independent of the estimate
+  // and the estimate stays unbiased whatever it chooses. A pixel is active when the pilot's
+  // values over it and its 8 neighbours differ by more than 10%: across pixels, so an edge
+  // between a light and its background is found even where each pixel's own paths agree.
+  std::vector<float> pilot_lo, pilot_hi;
+  if (opt.camera_paths > 0) {
+    pilot_lo.assign(npix, 0.f);
+    pilot_hi.assign(npix, 0.f);
+    tbb::parallel_for(0, set.height, [&](int y) {
+      ReceiverStats& st = row_stats[y];
+      for (int x = 0; x < set.width; ++x) {
+        const uint32_t pixel = uint32_t(y * set.width + x);
+        Rng rng(HashSeed({opt.seed, uint64_t(RngStream::kCameraPilot), pixel}));
+        float lo = kInfinity, hi = -kInfinity;
+        for (int k = 0; k < kCameraPilotPaths; ++k) {
+          const FilterSample fs = filter.Sample({rng.Uniform(), rng.Uniform()});
+          const Ray ray = scene.camera().GenerateRay({float(x) + 0.5f + fs.p.x, float(y) + 0.5f + fs.p.y},
+                                                     {rng.Uniform(), rng.Uniform()});
+          ++st.camera_pilot_paths;
+          float v = 0;
+          if (IsFinite(ray.o) && IsFinite(ray.d))
+            v = TraceCameraPath(scene, sharp_lights.get(), 1, ray, opt.max_depth, -1, rng).emitted.Luminance();
+          if (!std::isfinite(v)) v = -1;  // makes the pixel and its neighbours active
+          lo = std::min(lo, v);
+          hi = std::max(hi, v);
+        }
+        pilot_lo[pixel] = lo;
+        pilot_hi[pixel] = hi;
+      }
+    });
+  }
+  auto active = [&](int x, int y) {
+    float lo = kInfinity, hi = -kInfinity;
+    for (int yy = std::max(0, y - 1); yy <= std::min(set.height - 1, y + 1); ++yy)
+      for (int xx = std::max(0, x - 1); xx <= std::min(set.width - 1, x + 1); ++xx) {
+        lo = std::min(lo, pilot_lo[size_t(yy) * set.width + xx]);
+        hi = std::max(hi, pilot_hi[size_t(yy) * set.width + xx]);
+      }
+    return lo < 0.f || hi > 1.1f * lo;
+  };
+
   tbb::parallel_for(0, set.height, [&](int y) {
     ReceiverStats& st = row_stats[y];
     for (int x = 0; x < set.width; ++x) {
@@ -290,6 +333,48 @@ ReceiverSet GenerateReceivers(const Scene& scene, const FilterSampler& filter,
           has_point[index] = 1;
         }
       }
+      if (opt.camera_paths > 0 && active(x, y)) {
+        // Camera-side supersampling: the pixel's filter-weighted mean of what the camera paths
+        // collect by themselves, over its receiver samples and camera_paths more, continuing
+        // the same scrambled Sobol sequence. Each takes one emitter sample per sharp vertex
+        // (the pixel gets camera_paths of them; the receiver samples keep sharp_samples). Film::Resolve divides Σ w (E + G) by Σ w over the
+        // receiver samples, so giving each of them the mean Ē resolves to Ē + Σ w G / Σ w:
+        // two unbiased estimates of two disjoint sets of paths (each path ends where a
+        // receiver would start, so none is counted twice).
+        const size_t first = size_t(pixel) * spp;
+        double sum_w = 0, receiver_w = 0, sum[3] = {0, 0, 0};
+        auto add = [&](float w, RGB e) {
+          if (!e.IsFinite() || !std::isfinite(w)) return;  // dropped, as Film drops such a sample
+          const double wd = double(w);
+          sum_w += wd;
+          sum[0] += wd * double(e.r); sum[1] += wd * double(e.g); sum[2] += wd * double(e.b);
+        };
+        for (int s = 0; s < spp; ++s) {
+          add(set.samples[first + s].weight, set.samples[first + s].emitted);
+          receiver_w += double(set.samples[first + s].weight);
+        }
+        ++st.camera_active_pixels;
+        for (int k = 0; k < opt.camera_paths; ++k) {
+          const uint32_t s = uint32_t(spp + k);
+          Vec2 u{Sobol2DComponent(s, 0, scramble0), Sobol2DComponent(s, 1, scramble1)};
+          FilterSample fs = filter.Sample(u);
+          Vec2 p_film{float(x) + 0.5f + fs.p.x, float(y) + 0.5f + fs.p.y};
+          Ray ray = scene.camera().GenerateRay(p_film, {rng.Uniform(), rng.Uniform()});
+          ++st.camera_paths;
+          if (!IsFinite(ray.o) || !IsFinite(ray.d)) {
+            ++st.nonfinite_rays;
+            add(fs.weight, RGB(0.f));
+            continue;
+          }
+          const PathEnd end = TraceCameraPath(scene, sharp_lights.get(), 1, ray, opt.max_depth, -1, rng);
+          add(fs.weight, end.emitted);
+        }
+        // A pixel whose receiver weights cancel has no defined value either way.
+        if (sum_w != 0 && receiver_w != 0) {
+          const RGB mean(float(sum[0] / sum_w), float(sum[1] / sum_w), float(sum[2] / sum_w));
+          for (int s = 0; s < spp; ++s) set.samples[first + s].emitted = mean;
+        }
+      }
     }
   });
 
@@ -311,6 +396,9 @@ ReceiverSet GenerateReceivers(const Scene& scene, const FilterSampler& filter,
     set.stats.escaped += st.escaped;
     set.stats.nonfinite_rays += st.nonfinite_rays;
     set.stats.transmittance_evals += st.transmittance_evals;
+    set.stats.camera_paths += st.camera_paths;
+    set.stats.camera_pilot_paths += st.camera_pilot_paths;
+    set.stats.camera_active_pixels += st.camera_active_pixels;
   }
   return set;
 }

@@ -40,7 +40,9 @@ struct EyeSegment {
 struct CameraSample {
   uint32_t pixel = 0;     // y * width + x
   float weight = 0;       // filter weight f(p)/pdf(p)
-  RGB emitted;            // emission seen directly along the camera path (emitters, environment)
+  // Emission seen along the camera path (emitters, environment, next-event estimation at sharp
+  // vertices); with ReceiverOptions::camera_paths, the pixel's camera-side mean instead.
+  RGB emitted;
   int32_t point = -1;     // index of its shading point, -1 if the path ended without one
   int32_t first_segment = -1;  // its eye segments: [first_segment, first_segment + segment_count)
   uint32_t segment_count = 0;
@@ -49,6 +51,9 @@ struct CameraSample {
 struct ReceiverStats {
   size_t camera_rays = 0, specular_bounces = 0, escaped = 0, nonfinite_rays = 0;
   size_t transmittance_evals = 0;  // camera-ray segments attenuated through a medium
+  size_t camera_paths = 0;         // camera-side paths traced besides the receiver samples
+  size_t camera_pilot_paths = 0;   // pilot paths (not in the image)
+  size_t camera_active_pixels = 0; // pixels that got camera_paths more paths
 };
 
 struct ReceiverSet {
@@ -69,7 +74,21 @@ struct ReceiverOptions {
   // Emitter samples per sharp-lobe vertex (docs/rendering.md, "Sharp lobes"), MIS-combined with
   // the lobe's one sample.
   int sharp_samples = 8;
+  // Camera-side supersampling (docs/rendering.md, "Camera-side supersampling"): extra camera
+  // paths, each with its own film position, that collect only what a camera path collects by
+  // itself (emission seen directly or through delta and sharp lobes, next-event estimation at
+  // sharp vertices) and end where a receiver would start. A pilot of kCameraPilotPaths paths per
+  // pixel, on its own random stream and never part of the image, marks the pixels where that
+  // light varies; every pixel within one of a marked pixel gets `camera_paths` more paths. The
+  // pixel's camera-side radiance is then the filter-weighted mean over these and its `spp`
+  // receiver samples; the gather still runs on the receivers. 0: no pilot, each sample keeps
+  // its own (the estimator before this option).
+  int camera_paths = 0;
 };
+// The default of --param camera_paths for a scene whose camera paths can collect light by
+// themselves (render_job.cpp, CameraPathsFor).
+inline constexpr int kDefaultCameraPaths = 256;
+inline constexpr int kCameraPilotPaths = 4;
 
 // The scene's pixel filter (PixelFilter directive, or the override the scene was built with).
 std::unique_ptr<Filter> MakePixelFilter(const RenderHints& hints);

@@ -39,6 +39,7 @@ enum class RngStream : uint64_t {
   kPathSample = 10,  // the path tracer: one generator per (pixel, sample index)
   kCompensation = 11,  // the clamp compensation: one generator per (row, sample)
   kCausticPhoton = 12,  // caustic photon paths: one generator per path
+  kCameraPilot = 13,  // camera-side pilot paths (receivers.cpp): one generator per pixel
 };
 
 // PCG32 (O'Neill 2014): small state, good statistics, cheap to seed per pixel / per path.

@@ -2,12 +2,15 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
+#include <vector>
 #include <tbb/global_control.h>
 
 #include <cmath>
 #include <string>
 
 #include "common/farm/render_job.h"
+#include "common/receivers/receivers.h"
 #include "tests/common/test_util.h"
 
 namespace lightfarm {
@@ -168,6 +171,124 @@ TEST(AnalyticRender, SmoothCoatMirrorsAnEmitterWithFresnelWeight) {
   const double rs = (c - eta * cos_t) / (c + eta * cos_t), rp = (eta * c - cos_t) / (eta * c + cos_t);
   const double fresnel = 0.5 * (rs * rs + rp * rp);
   EXPECT_NEAR(MeanGreen(out.image), fresnel, 0.01 * fresnel);
+}
+
+// Camera-side supersampling (ReceiverOptions::camera_paths): an emitting rhombus
+// |x|/0.8 + |y|/0.6 ≤ 1 over a black floor, seen by an orthographic camera through a box
+// filter, so each pixel's exact value is L × the share of the pixel the rhombus covers. One
+// sample per pixel makes the edge pixels 0 or L; the pilot marks them and their camera paths
+// bring them to their coverage, while the flat pixels (inside, outside) get no extra path.
+std::string RhombusScene(int res) {
+  return "Film \"rgb\" \"integer xresolution\" [" + std::to_string(res) + "] \"integer yresolution\" [" +
+         std::to_string(res) +
+         "]\nPixelFilter \"box\"\nIntegrator \"path\" \"integer maxdepth\" [1]\n"
+         "LookAt 0 0 5  0 0 0  0 1 0\nCamera \"orthographic\" \"float screenwindow\" [-1 1 -1 1]\n"
+         "WorldBegin\n"
+         "AttributeBegin\n  AreaLightSource \"diffuse\" \"rgb L\" [2 2 2] \"bool twosided\" true\n"
+         "  Material \"diffuse\" \"rgb reflectance\" [0 0 0]\n"
+         "  Shape \"trianglemesh\" \"point3 P\" [0.8 0 0.5  0 0.6 0.5  -0.8 0 0.5  0 -0.6 0.5]\n"
+         "    \"integer indices\" [0 1 2 0 2 3]\nAttributeEnd\n"
+         "Material \"diffuse\" \"rgb reflectance\" [0 0 0]\n"
+         "Shape \"trianglemesh\" \"point3 P\" [-4 -4 0  4 -4 0  4 4 0  -4 4 0] \"integer indices\" [0 1 2 0 2 3]\n";
+}
+
+// Area of the square [x0,x1]×[y0,y1] inside the rhombus: the square clipped by its four
+// half-planes (Sutherland–Hodgman), then the shoelace formula. Symmetric in x and y, so the
+// image's orientation does not matter.
+double RhombusCoverage(double x0, double y0, double x1, double y1) {
+  std::vector<std::array<double, 2>> poly = {{x0, y0}, {x1, y0}, {x1, y1}, {x0, y1}};
+  for (double sx : {-1.0, 1.0})
+    for (double sy : {-1.0, 1.0}) {
+      auto inside = [&](const std::array<double, 2>& p) { return sx * p[0] / 0.8 + sy * p[1] / 0.6 <= 1; };
+      std::vector<std::array<double, 2>> out;
+      for (size_t i = 0; i < poly.size(); ++i) {
+        const auto& a = poly[i];
+        const auto& b = poly[(i + 1) % poly.size()];
+        if (inside(a)) out.push_back(a);
+        if (inside(a) != inside(b)) {
+          const double fa = sx * a[0] / 0.8 + sy * a[1] / 0.6 - 1, fb = sx * b[0] / 0.8 + sy * b[1] / 0.6 - 1;
+          const double t = fa / (fa - fb);
+          out.push_back({a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])});
+        }
+      }
+      poly = std::move(out);
+    }
+  double area = 0;
+  for (size_t i = 0; i < poly.size(); ++i) {
+    const auto& a = poly[i];
+    const auto& b = poly[(i + 1) % poly.size()];
+    area += a[0] * b[1] - b[0] * a[1];
+  }
+  return std::abs(area) / 2 / ((x1 - x0) * (y1 - y0));
+}
+
+struct CoverageError {
+  double max_abs = 0;  // largest |pixel − L·coverage|, in units of L
+  double mean = 0;     // image mean, in units of L
+};
+
+CoverageError RhombusError(const Image& img, int res) {
+  CoverageError e;
+  for (int py = 0; py < res; ++py)
+    for (int px = 0; px < res; ++px) {
+      const double x0 = -1 + 2.0 * px / res, y0 = -1 + 2.0 * py / res;
+      const double expected = RhombusCoverage(x0, y0, x0 + 2.0 / res, y0 + 2.0 / res);
+      const double v = double(img.at(px, py).g) / 2;
+      e.max_abs = std::max(e.max_abs, std::abs(v - expected));
+      e.mean += v / double(res * res);
+    }
+  return e;
+}
+
+TEST(CameraSideSupersampling, ALightsEdgePixelsConvergeToTheirCoverage) {
+  TempDir dir;
+  const int res = 24;
+  const std::string path = dir.Write("rhombus.pbrt", RhombusScene(res));
+  RenderSettings s;
+  s.method = "brute";
+  s.lights = 50;
+  s.seed = 3;
+  s.params = {"camera_paths=2048"};
+  RenderOutput on = RenderScene(path, s);
+  const CoverageError e_on = RhombusError(on.image, res);
+  // 2049 stratified samples of a pixel cut by a straight edge: far below 1% of L.
+  EXPECT_LT(e_on.max_abs, 0.01);
+  // The rhombus covers 0.96 of the screen's area 4.
+  EXPECT_NEAR(e_on.mean, 0.24, 0.24 * 1e-3);
+  // Only the pixels near an edge got camera paths: the edge pixels and their neighbours.
+  const uint64_t active = on.stats["receivers"]["camera_active_pixels"];
+  EXPECT_GT(active, size_t(4 * res / 2));
+  EXPECT_LT(active, size_t(res * res / 2));
+  EXPECT_EQ(on.stats["receivers"]["camera_paths"], active * 2048);
+  EXPECT_EQ(on.stats["receivers"]["camera_pilot_paths"], size_t(res * res * kCameraPilotPaths));
+
+  // Off, the edge pixels are 0 or L: the option is what brought them to their coverage.
+  s.params = {"camera_paths=0"};
+  RenderOutput off = RenderScene(path, s);
+  const CoverageError e_off = RhombusError(off.image, res);
+  EXPECT_GT(e_off.max_abs, 0.3);
+  EXPECT_EQ(off.stats["receivers"]["camera_paths"], 0);
+  EXPECT_EQ(off.stats["receivers"]["camera_pilot_paths"], 0);
+  // Same receivers either way: the gathered part (black here) and the image inside the rhombus.
+  EXPECT_EQ(on.image.at(res / 2, res / 2), off.image.at(res / 2, res / 2));
+}
+
+// Simulate only what the scene calls for: a camera that can see no emitter (a point light over
+// a diffuse plane) gets no pilot and no camera paths, and the image is the same bits as with
+// the option off.
+TEST(CameraSideSupersampling, NothingToSeeNoCameraPaths) {
+  TempDir dir;
+  const std::string path =
+      dir.Write("plane.pbrt", PlaneScene("LightSource \"point\" \"rgb I\" [1 1 1] \"point3 from\" [0 0 1]\n", 16, 2));
+  RenderSettings s;
+  s.lights = 200;
+  RenderOutput def = RenderScene(path, s);
+  EXPECT_EQ(def.stats["receivers"]["camera_paths"], 0);
+  EXPECT_EQ(def.stats["receivers"]["camera_pilot_paths"], 0);
+  s.params = {"camera_paths=0"};
+  RenderOutput off = RenderScene(path, s);
+  ASSERT_TRUE(def.image.SameSize(off.image));
+  for (size_t i = 0; i < def.image.pixels.size(); ++i) ASSERT_EQ(def.image.pixels[i], off.image.pixels[i]);
 }
 
 TEST(Determinism, SameSeedSameBitsWithOneOrTwoThreads) {
