@@ -118,6 +118,10 @@ for (name, res, method, rule, lights, spp, t, e, e2, pspp, tp, ep, ep2, truth) i
     md.append(f"| {name} | {res} | {method} ({rule}) | {lights} | {float(t):.1f} s | {float(e):.4f} | {float(e2):.4f} | "
               f"{pspp} | {float(tp):.1f} s | {float(ep):.4f} | {float(ep2):.4f} | {ratio:.2f} | {verdict} |")
     notes.append(f"- {name}: truth {truth}.")
+    if method == "path":
+        notes.append(f"  The default is `path` here ({rule}): in media no many-light method beats it at equal "
+                     "time against the truth yet (docs/truth.md; docs/rendering.md, `auto`), so both columns are "
+                     "the path tracer and differ only by seed and spp.")
 md += ["", "`level`: within 10%. The verdict is on rel_l1; rel_l2 weighs the brightest pixels most "
        "(a visible light's edges and highlights), so read both. Truths:", ""] + notes + ["",
        "A path-traced truth carries its own noise (stated above): per pixel it is far above the image mean's, "

@@ -1,5 +1,5 @@
 // `--method auto`: the rule table resolves surface scenes by light count and accuracy target,
-// media scenes to brute force unless the target allows adaptive-completion's measured error, rejects a
+// media scenes to `path` without a target, else to brute force unless the target allows adaptive-completion's measured error, rejects a
 // target that is not a number in (0, 1], and a render names the resolved method in its stats.
 #include <gtest/gtest.h>
 #include <sys/wait.h>
@@ -46,12 +46,17 @@ TEST(AutoMethod, SurfaceScenesResolveByLightCountAndTarget) {
     EXPECT_NO_THROW(CreateGatherMethod(Resolve(e, 20000, {target}), OptionMap())) << target;
 }
 
-TEST(AutoMethod, MediaResolveToBruteForceUnlessTheTargetAllowsAdaptiveCompletion) {
+TEST(AutoMethod, MediaResolveToPathWithoutATargetElseBruteForceUnlessTheTargetAllowsAdaptiveCompletion) {
   Effects e = SurfaceEffects();
   e.media = true;
+  // No target: the path tracer, which beats every many-light method in media at equal time
+  // against the truth (docs/truth.md), whatever the light count.
+  EXPECT_EQ(Resolve(e, 20000), "path");
+  EXPECT_EQ(Resolve(e, 200), "path");
+  EXPECT_EQ(Resolve(SurfaceEffects(), 20000), "lightcuts");  // surfaces keep the accuracy rule
   // adaptive-completion's worst measured rel_l2 on media scenes is 0.054: with the 0.5 margin it
   // needs a target of at least 0.108
-  EXPECT_EQ(Resolve(e, 20000), "brute");
+  EXPECT_EQ(Resolve(e, 20000, {"target_error=0.02"}), "brute");
   EXPECT_EQ(Resolve(e, 20000, {"target_error=0.1"}), "brute");
   EXPECT_EQ(Resolve(e, 20000, {"target_error=0.15"}), "adaptive-completion");
   EXPECT_EQ(Resolve(e, 200, {"target_error=0.15"}), "adaptive-completion");  // media come first
