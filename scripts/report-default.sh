@@ -89,7 +89,10 @@ print(max(1, min(65536, round($path_spp * r))) if abs(r - 1) > 0.1 else 0)")
     t_path=$(json "$w/path.json" "d['time']['total_s']")
   fi
   read -r e_path e2_path < <(error "$truth" "$w/path.exr")
-  rows+=("$name|$res|$method|$rule|$lights|$spp|$t_default|$e_default|$e2_default|$path_spp|$t_path|$e_path|$e2_path|$truth_label")
+  # The camera-side supersampling's share: active pixels and the receivers phase (pilot and
+  # camera paths included) against the whole render.
+  camera=$(json "$w/default.json" "'active in %d of %d pixels; the receivers phase, pilot and camera paths included, took %.1f s' % (d['receivers'].get('camera_active_pixels', 0), d['resolution'][0] * d['resolution'][1], d['time']['phases'].get('receivers', 0))")
+  rows+=("$name|$res|$method|$rule|$lights|$spp|$t_default|$e_default|$e2_default|$path_spp|$t_path|$e_path|$e2_path|$truth_label|$camera")
 done
 
 out="$root/docs/default-vs-path.md"
@@ -112,12 +115,13 @@ md = ["# The default render against the path tracer at equal time", "",
       "| scene | resolution | default: method (auto's rule) | lights | time | rel_l1 | rel_l2 | path spp | path time | path rel_l1 | path rel_l2 | ratio | verdict |",
       "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
 notes = []
-for (name, res, method, rule, lights, spp, t, e, e2, pspp, tp, ep, ep2, truth) in lines:
+for (name, res, method, rule, lights, spp, t, e, e2, pspp, tp, ep, ep2, truth, camera) in lines:
     ratio = float(ep) / max(float(e), 1e-12)
     verdict = "default wins" if ratio > 1.1 else ("path wins" if ratio < 1 / 1.1 else "level")
     md.append(f"| {name} | {res} | {method} ({rule}) | {lights} | {float(t):.1f} s | {float(e):.4f} | {float(e2):.4f} | "
               f"{pspp} | {float(tp):.1f} s | {float(ep):.4f} | {float(ep2):.4f} | {ratio:.2f} | {verdict} |")
-    notes.append(f"- {name}: truth {truth}.")
+    notes.append(f"- {name}: truth {truth}." + (f" Camera-side supersampling: {camera} (of the default's time)."
+                                                 if method != "path" else ""))
     if method == "path":
         notes.append(f"  The default is `path` here ({rule}): in media no many-light method beats it at equal "
                      "time against the truth yet (docs/truth.md; docs/rendering.md, `auto`), so both columns are "
