@@ -120,7 +120,7 @@ for (name, res, method, rule, lights, spp, t, e, e2, pspp, tp, ep, ep2, truth, c
     verdict = "default wins" if ratio > 1.1 else ("path wins" if ratio < 1 / 1.1 else "level")
     md.append(f"| {name} | {res} | {method} ({rule}) | {lights} | {float(t):.1f} s | {float(e):.4f} | {float(e2):.4f} | "
               f"{pspp} | {float(tp):.1f} s | {float(ep):.4f} | {float(ep2):.4f} | {ratio:.2f} | {verdict} |")
-    notes.append(f"- {name}: truth {truth}." + (f" Camera-side supersampling: {camera} (of the default's time)."
+    notes.append(f"- {name}: truth {truth}." + (f" Camera-side supersampling: {camera}."
                                                  if method != "path" else ""))
     if method == "path":
         notes.append(f"  The default is `path` here ({rule}): in media no many-light method beats it at equal "
