@@ -287,7 +287,40 @@ ReceiverSet GenerateReceivers(const Scene& scene, const FilterSampler& filter,
       }
     });
   }
+  // Small emitters seen directly: a light whose image covers a small share of a pixel (a bulb
+  // far away, water-caustic's 5 mm square) is found by no pilot path. Every emissive shape
+  // whose projected bounds fit in kSmallEmitterPixels² activates those bounds and one pixel
+  // around them: a choice made from the geometry alone, so it keeps the estimate unbiased like
+  // the pilot's. Larger emitters are left to the pilot (their edges vary, their interiors not).
+  std::vector<uint8_t> near_small_emitter;
+  if (opt.camera_paths > 0) {
+    near_small_emitter.assign(npix, 0);
+    for (const Shape& shape : scene.shapes()) {
+      if (shape.area_emitter < 0) continue;
+      float x0 = kInfinity, y0 = kInfinity, x1 = -kInfinity, y1 = -kInfinity;
+      bool projects = true;
+      auto add_point = [&](Vec3 p) {
+        const std::optional<Vec2> r = scene.camera().Project(p);
+        if (!r) { projects = false; return; }
+        x0 = std::min(x0, r->x); y0 = std::min(y0, r->y);
+        x1 = std::max(x1, r->x); y1 = std::max(y1, r->y);
+      };
+      if (shape.kind == ShapeKind::kSphere) {
+        for (int c = 0; c < 8 && projects; ++c)
+          add_point(shape.center + Vec3{c & 1 ? shape.radius : -shape.radius, c & 2 ? shape.radius : -shape.radius,
+                                        c & 4 ? shape.radius : -shape.radius});
+      } else {
+        for (size_t i = 0; i < shape.positions.size() && projects; ++i) add_point(shape.positions[i]);
+      }
+      if (!projects || !(x1 - x0 <= kSmallEmitterPixels) || !(y1 - y0 <= kSmallEmitterPixels)) continue;
+      const int px0 = std::max(0, int(std::floor(x0)) - 1), px1 = std::min(set.width - 1, int(std::floor(x1)) + 1);
+      const int py0 = std::max(0, int(std::floor(y0)) - 1), py1 = std::min(set.height - 1, int(std::floor(y1)) + 1);
+      for (int y = py0; y <= py1; ++y)
+        for (int x = px0; x <= px1; ++x) near_small_emitter[size_t(y) * set.width + x] = 1;
+    }
+  }
   auto active = [&](int x, int y) {
+    if (near_small_emitter[size_t(y) * set.width + x]) return true;
     float lo = kInfinity, hi = -kInfinity;
     for (int yy = std::max(0, y - 1); yy <= std::min(set.height - 1, y + 1); ++yy)
       for (int xx = std::max(0, x - 1); xx <= std::min(set.width - 1, x + 1); ++xx) {

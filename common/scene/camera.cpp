@@ -20,6 +20,7 @@ Camera Camera::Create(const CameraDesc& desc, int width, int height) {
   auto inv = desc.camera_from_world.Inverse();
   if (!inv) throw SceneError(desc.loc, "camera transform is singular");
   cam.world_from_camera_ = *inv;
+  cam.camera_from_world_ = desc.camera_from_world;
 
   // Screen window: the shorter image axis spans [-1, 1] (pbrt-v4 CameraBase).
   float aspect = ps.GetOneFloat("frameaspectratio", float(width) / float(height));
@@ -60,8 +61,19 @@ Camera Camera::Create(const CameraDesc& desc, int width, int height) {
   auto camera_from_raster = raster_from_camera.Inverse();
   if (!camera_from_raster) throw SceneError(desc.loc, "camera projection is singular");
   cam.camera_from_raster_ = *camera_from_raster;
+  cam.raster_from_camera_ = raster_from_camera;
   ps.ReportUnused("Camera \"" + desc.type + "\"");
   return cam;
+}
+
+std::optional<Vec2> Camera::Project(Vec3 p_world) const {
+  if (lens_radius_ > 0.f) return std::nullopt;
+  const Vec3 p_camera = camera_from_world_.ApplyPoint(p_world);
+  // The perspective projection divides by z: only points in front of the eye have an image.
+  if (type_ == Type::kPerspective && !(p_camera.z > 1e-6f)) return std::nullopt;
+  const Vec3 p_raster = raster_from_camera_.ApplyPoint(p_camera);
+  if (!std::isfinite(p_raster.x) || !std::isfinite(p_raster.y)) return std::nullopt;
+  return Vec2{p_raster.x, p_raster.y};
 }
 
 Ray Camera::GenerateRay(Vec2 p_film, Vec2 u_lens) const {

@@ -3,6 +3,7 @@
 // window with y up; the camera looks down +z (pbrt's left-handed camera space).
 #pragma once
 
+#include <optional>
 #include <string>
 
 #include "common/scene/scene_description.h"
@@ -25,6 +26,11 @@ class Camera {
   // Ray through raster position p_film (continuous pixel coordinates) and lens sample u_lens.
   Ray GenerateRay(Vec2 p_film, Vec2 u_lens) const;
 
+  // Raster position of a world point seen through a pinhole camera (perspective or orthographic),
+  // if it lies in front of the camera; nullopt behind it, and for a thin lens (lensradius > 0),
+  // whose image of a point is a disk, not a position.
+  std::optional<Vec2> Project(Vec3 p_world) const;
+
   Vec3 position() const { return world_from_camera_.ApplyPoint({0, 0, 0}); }
   Type type() const { return type_; }
 
@@ -32,6 +38,7 @@ class Camera {
   Type type_ = Type::kPerspective;
   Transform world_from_camera_;
   Transform camera_from_raster_;
+  Transform camera_from_world_, raster_from_camera_;
   float lens_radius_ = 0, focal_distance_ = 1e6f;
 };
 

@@ -273,6 +273,48 @@ TEST(CameraSideSupersampling, ALightsEdgePixelsConvergeToTheirCoverage) {
   EXPECT_EQ(on.image.at(res / 2, res / 2), off.image.at(res / 2, res / 2));
 }
 
+// A light far smaller than a pixel: a 0.02 × 0.02 square inside one pixel of 24² over [-1, 1]²
+// covers 5.8% of it, so the pilot's 4 paths there miss it four times in five. Its projected
+// bounds activate the pixel instead, and the camera paths find its energy: the image's sum is
+// L × its area over a pixel's area, within the noise of 2049 samples (~117 hits, 9%).
+TEST(CameraSideSupersampling, ALightSmallerThanAPixelIsFoundByItsProjection) {
+  TempDir dir;
+  const int res = 24;
+  const double pixel = 2.0 / res, side = 0.02;
+  // The centre of pixel (12, 12) is at (pixel / 2, pixel / 2) in either orientation of the image.
+  const double c = pixel / 2, h = side / 2;
+  auto v = [&](double x, double y) { return std::to_string(x) + " " + std::to_string(y) + " 0.5  "; };
+  const std::string scene =
+      "Film \"rgb\" \"integer xresolution\" [24] \"integer yresolution\" [24]\n"
+      "PixelFilter \"box\"\nIntegrator \"path\" \"integer maxdepth\" [1]\n"
+      "LookAt 0 0 5  0 0 0  0 1 0\nCamera \"orthographic\" \"float screenwindow\" [-1 1 -1 1]\n"
+      "WorldBegin\nAttributeBegin\n  AreaLightSource \"diffuse\" \"rgb L\" [1000 1000 1000] \"bool twosided\" true\n"
+      "  Material \"diffuse\" \"rgb reflectance\" [0 0 0]\n"
+      "  Shape \"trianglemesh\" \"point3 P\" [" + v(c - h, c - h) + v(c + h, c - h) + v(c + h, c + h) + v(c - h, c + h) +
+      "]\n    \"integer indices\" [0 1 2 0 2 3]\nAttributeEnd\n";
+  const std::string path = dir.Write("speck.pbrt", scene);
+  // Eight seeds: the pilot alone would leave the pixel inactive in most of them.
+  for (uint64_t seed = 1; seed <= 8; ++seed) {
+    RenderSettings s;
+    s.method = "brute";
+    s.lights = 10;
+    s.seed = seed;
+    s.params = {"camera_paths=2048"};
+    RenderOutput out = RenderScene(path, s);
+    double sum = 0;
+    size_t lit = 0;
+    for (const RGB& p : out.image.pixels) {
+      sum += double(p.g);
+      lit += p.g > 0;
+    }
+    const double expected = 1000 * side * side / (pixel * pixel);  // 5.76
+    EXPECT_NEAR(sum, expected, 0.3 * expected) << "seed " << seed;
+    EXPECT_EQ(lit, 1u) << "seed " << seed;  // the light lies inside one pixel
+    // Its bounds and the pixels around them, 3×3, are active; nothing else is.
+    EXPECT_EQ(out.stats["receivers"]["camera_active_pixels"], 9) << "seed " << seed;
+  }
+}
+
 // Simulate only what the scene calls for: a camera that can see no emitter (a point light over
 // a diffuse plane) gets no pilot and no camera paths, and the image is the same bits as with
 // the option off.
