@@ -2,6 +2,9 @@
 
 #include <tbb/parallel_for.h>
 
+#include <optional>
+#include <span>
+
 #include <embree3/rtcore.h>
 
 #include "common/lights/emitters.h"
@@ -221,6 +224,146 @@ PathEnd TraceCameraPath(const Scene& scene, const EmitterSampler* lights, int sh
   }
 }
 
+// The camera ray through pixel (x, y) at the filter sample fs.
+Ray FilmRay(const Scene& scene, int x, int y, const FilterSample& fs, Rng& rng) {
+  const Vec2 p_film{float(x) + 0.5f + fs.p.x, float(y) + 0.5f + fs.p.y};
+  return scene.camera().GenerateRay(p_film, {rng.Uniform(), rng.Uniform()});
+}
+
+// Which pixels get camera paths (docs/rendering.md, "Camera-side supersampling"). Both tests
+// are independent of the image's samples (the pilot has its own stream, the emitters are
+// geometry), so the estimate stays unbiased whatever they choose.
+class CameraSideActivity {
+ public:
+  CameraSideActivity(const Scene& scene, const FilterSampler& filter, const EmitterSampler* sharp_lights,
+                     const ReceiverOptions& opt, std::vector<ReceiverStats>* row_stats)
+      : width_(scene.hints().width), height_(scene.hints().height) {
+    const size_t npix = size_t(width_) * size_t(height_);
+    lo_.assign(npix, 0.f);
+    hi_.assign(npix, 0.f);
+    small_emitter_.assign(npix, 0);
+    RunPilot(scene, filter, sharp_lights, opt, row_stats);
+    MarkSmallEmitters(scene);
+  }
+
+  // Near a small emitter's image, or where the pilot's values over the pixel and its 8
+  // neighbours differ by more than 10%: across pixels, so the edge between a light and its
+  // background is found even where each pixel's own paths agree.
+  bool active(int x, int y) const {
+    if (small_emitter_[size_t(y) * width_ + x]) return true;
+    float lo = kInfinity, hi = -kInfinity;
+    for (int yy = std::max(0, y - 1); yy <= std::min(height_ - 1, y + 1); ++yy)
+      for (int xx = std::max(0, x - 1); xx <= std::min(width_ - 1, x + 1); ++xx) {
+        lo = std::min(lo, lo_[size_t(yy) * width_ + xx]);
+        hi = std::max(hi, hi_[size_t(yy) * width_ + xx]);
+      }
+    return lo < 0.f || hi > 1.1f * lo;
+  }
+
+ private:
+  // kCameraPilotPaths paths per pixel on their own stream, never part of the image: the range
+  // of their camera-side luminance (-1 for a non-finite one, which makes the block active).
+  void RunPilot(const Scene& scene, const FilterSampler& filter, const EmitterSampler* sharp_lights,
+                const ReceiverOptions& opt, std::vector<ReceiverStats>* row_stats) {
+    tbb::parallel_for(0, height_, [&](int y) {
+      ReceiverStats& st = (*row_stats)[y];
+      for (int x = 0; x < width_; ++x) {
+        const size_t pixel = size_t(y) * width_ + x;
+        Rng rng(HashSeed({opt.seed, uint64_t(RngStream::kCameraPilot), pixel}));
+        float lo = kInfinity, hi = -kInfinity;
+        for (int k = 0; k < kCameraPilotPaths; ++k) {
+          const Ray ray = FilmRay(scene, x, y, filter.Sample({rng.Uniform(), rng.Uniform()}), rng);
+          ++st.camera_pilot_paths;
+          float v = 0;
+          if (IsFinite(ray.o) && IsFinite(ray.d))
+            v = TraceCameraPath(scene, sharp_lights, 1, ray, opt.max_depth, -1, rng).emitted.Luminance();
+          if (!std::isfinite(v)) v = -1;
+          lo = std::min(lo, v);
+          hi = std::max(hi, v);
+        }
+        lo_[pixel] = lo;
+        hi_[pixel] = hi;
+      }
+    });
+  }
+
+  // A light whose image covers a small share of a pixel (a bulb far away, water-caustic's 5 mm
+  // square) is found by no pilot path: every emissive shape whose projected bounds fit in
+  // kSmallEmitterPixels² marks them and one pixel around them. Larger emitters are the pilot's
+  // (their edges vary, their interiors do not). Pinhole cameras only (Camera::Project).
+  void MarkSmallEmitters(const Scene& scene) {
+    for (const Shape& shape : scene.shapes()) {
+      if (shape.area_emitter < 0) continue;
+      float x0 = kInfinity, y0 = kInfinity, x1 = -kInfinity, y1 = -kInfinity;
+      bool small = true;
+      auto add_point = [&](Vec3 p) {
+        const std::optional<Vec2> r = scene.camera().Project(p);
+        if (!r) {
+          small = false;
+          return;
+        }
+        x0 = std::min(x0, r->x), y0 = std::min(y0, r->y), x1 = std::max(x1, r->x), y1 = std::max(y1, r->y);
+        small = x1 - x0 <= kSmallEmitterPixels && y1 - y0 <= kSmallEmitterPixels;
+      };
+      if (shape.kind == ShapeKind::kSphere) {
+        for (int c = 0; c < 8 && small; ++c)
+          add_point(shape.center + Vec3{c & 1 ? shape.radius : -shape.radius, c & 2 ? shape.radius : -shape.radius,
+                                        c & 4 ? shape.radius : -shape.radius});
+      } else {
+        for (size_t i = 0; i < shape.positions.size() && small; ++i) add_point(shape.positions[i]);
+      }
+      if (!small) continue;
+      const int px0 = std::max(0, int(std::floor(x0)) - 1), px1 = std::min(width_ - 1, int(std::floor(x1)) + 1);
+      const int py0 = std::max(0, int(std::floor(y0)) - 1), py1 = std::min(height_ - 1, int(std::floor(y1)) + 1);
+      for (int y = py0; y <= py1; ++y)
+        for (int x = px0; x <= px1; ++x) small_emitter_[size_t(y) * width_ + x] = 1;
+    }
+  }
+
+  int width_, height_;
+  std::vector<float> lo_, hi_;
+  std::vector<uint8_t> small_emitter_;
+};
+
+// Camera-side supersampling of one active pixel: its camera_paths more paths continue the
+// pixel's scrambled Sobol sequence after its receiver samples, each with one emitter sample per
+// sharp vertex (the pixel gets camera_paths of them; the receiver samples keep sharp_samples).
+// Film::Resolve divides Σ w (E + G) by Σ w over the receiver samples, so giving each of them the
+// filter-weighted mean Ē over all the pixel's paths resolves to Ē + Σ w G / Σ w: two unbiased
+// estimates of two disjoint sets of paths (a path ends where a receiver would start).
+void AddCameraPaths(const Scene& scene, const FilterSampler& filter, const EmitterSampler* sharp_lights,
+                    const ReceiverOptions& opt, int x, int y, uint32_t scramble0, uint32_t scramble1, Rng& rng,
+                    std::span<CameraSample> samples, ReceiverStats* st) {
+  double sum_w = 0, receiver_w = 0, sum[3] = {0, 0, 0};
+  auto add = [&](float w, RGB e) {
+    if (!e.IsFinite() || !std::isfinite(w)) return;  // dropped, as Film drops such a sample
+    const double wd = double(w);
+    sum_w += wd;
+    sum[0] += wd * double(e.r), sum[1] += wd * double(e.g), sum[2] += wd * double(e.b);
+  };
+  for (const CameraSample& cs : samples) {
+    add(cs.weight, cs.emitted);
+    receiver_w += double(cs.weight);
+  }
+  for (int k = 0; k < opt.camera_paths; ++k) {
+    const uint32_t s = uint32_t(samples.size()) + uint32_t(k);
+    const FilterSample fs =
+        filter.Sample({Sobol2DComponent(s, 0, scramble0), Sobol2DComponent(s, 1, scramble1)});
+    const Ray ray = FilmRay(scene, x, y, fs, rng);
+    ++st->camera_paths;
+    if (!IsFinite(ray.o) || !IsFinite(ray.d)) {
+      ++st->nonfinite_rays;
+      add(fs.weight, RGB(0.f));
+      continue;
+    }
+    add(fs.weight, TraceCameraPath(scene, sharp_lights, 1, ray, opt.max_depth, -1, rng).emitted);
+  }
+  // A pixel whose receiver weights cancel has no defined value either way.
+  if (sum_w == 0 || receiver_w == 0) return;
+  const RGB mean(float(sum[0] / sum_w), float(sum[1] / sum_w), float(sum[2] / sum_w));
+  for (CameraSample& cs : samples) cs.emitted = mean;
+}
+
 }  // namespace
 
 std::unique_ptr<Filter> MakePixelFilter(const RenderHints& h) {
@@ -254,81 +397,9 @@ ReceiverSet GenerateReceivers(const Scene& scene, const FilterSampler& filter,
     }
   if (sharp_lights && sharp_lights->empty()) sharp_lights.reset();
 
-  // Camera-side pilot: where the light camera paths collect by themselves varies (a light's
-  // edge, a sharp lobe's highlight, emitter samples at a sharp vertex). Its paths use their own
-  // stream and never enter the image, so the choice it makes is independent of the estimate
-  // and the estimate stays unbiased whatever it chooses. A pixel is active when the pilot's
-  // values over it and its 8 neighbours differ by more than 10%: across pixels, so an edge
-  // between a light and its background is found even where each pixel's own paths agree.
-  std::vector<float> pilot_lo, pilot_hi;
-  if (opt.camera_paths > 0) {
-    pilot_lo.assign(npix, 0.f);
-    pilot_hi.assign(npix, 0.f);
-    tbb::parallel_for(0, set.height, [&](int y) {
-      ReceiverStats& st = row_stats[y];
-      for (int x = 0; x < set.width; ++x) {
-        const uint32_t pixel = uint32_t(y * set.width + x);
-        Rng rng(HashSeed({opt.seed, uint64_t(RngStream::kCameraPilot), pixel}));
-        float lo = kInfinity, hi = -kInfinity;
-        for (int k = 0; k < kCameraPilotPaths; ++k) {
-          const FilterSample fs = filter.Sample({rng.Uniform(), rng.Uniform()});
-          const Ray ray = scene.camera().GenerateRay({float(x) + 0.5f + fs.p.x, float(y) + 0.5f + fs.p.y},
-                                                     {rng.Uniform(), rng.Uniform()});
-          ++st.camera_pilot_paths;
-          float v = 0;
-          if (IsFinite(ray.o) && IsFinite(ray.d))
-            v = TraceCameraPath(scene, sharp_lights.get(), 1, ray, opt.max_depth, -1, rng).emitted.Luminance();
-          if (!std::isfinite(v)) v = -1;  // makes the pixel and its neighbours active
-          lo = std::min(lo, v);
-          hi = std::max(hi, v);
-        }
-        pilot_lo[pixel] = lo;
-        pilot_hi[pixel] = hi;
-      }
-    });
-  }
-  // Small emitters seen directly: a light whose image covers a small share of a pixel (a bulb
-  // far away, water-caustic's 5 mm square) is found by no pilot path. Every emissive shape
-  // whose projected bounds fit in kSmallEmitterPixels² activates those bounds and one pixel
-  // around them: a choice made from the geometry alone, so it keeps the estimate unbiased like
-  // the pilot's. Larger emitters are left to the pilot (their edges vary, their interiors not).
-  std::vector<uint8_t> near_small_emitter;
-  if (opt.camera_paths > 0) {
-    near_small_emitter.assign(npix, 0);
-    for (const Shape& shape : scene.shapes()) {
-      if (shape.area_emitter < 0) continue;
-      float x0 = kInfinity, y0 = kInfinity, x1 = -kInfinity, y1 = -kInfinity;
-      bool projects = true;
-      auto add_point = [&](Vec3 p) {
-        const std::optional<Vec2> r = scene.camera().Project(p);
-        if (!r) { projects = false; return; }
-        x0 = std::min(x0, r->x); y0 = std::min(y0, r->y);
-        x1 = std::max(x1, r->x); y1 = std::max(y1, r->y);
-      };
-      if (shape.kind == ShapeKind::kSphere) {
-        for (int c = 0; c < 8 && projects; ++c)
-          add_point(shape.center + Vec3{c & 1 ? shape.radius : -shape.radius, c & 2 ? shape.radius : -shape.radius,
-                                        c & 4 ? shape.radius : -shape.radius});
-      } else {
-        for (size_t i = 0; i < shape.positions.size() && projects; ++i) add_point(shape.positions[i]);
-      }
-      if (!projects || !(x1 - x0 <= kSmallEmitterPixels) || !(y1 - y0 <= kSmallEmitterPixels)) continue;
-      const int px0 = std::max(0, int(std::floor(x0)) - 1), px1 = std::min(set.width - 1, int(std::floor(x1)) + 1);
-      const int py0 = std::max(0, int(std::floor(y0)) - 1), py1 = std::min(set.height - 1, int(std::floor(y1)) + 1);
-      for (int y = py0; y <= py1; ++y)
-        for (int x = px0; x <= px1; ++x) near_small_emitter[size_t(y) * set.width + x] = 1;
-    }
-  }
-  auto active = [&](int x, int y) {
-    if (near_small_emitter[size_t(y) * set.width + x]) return true;
-    float lo = kInfinity, hi = -kInfinity;
-    for (int yy = std::max(0, y - 1); yy <= std::min(set.height - 1, y + 1); ++yy)
-      for (int xx = std::max(0, x - 1); xx <= std::min(set.width - 1, x + 1); ++xx) {
-        lo = std::min(lo, pilot_lo[size_t(yy) * set.width + xx]);
-        hi = std::max(hi, pilot_hi[size_t(yy) * set.width + xx]);
-      }
-    return lo < 0.f || hi > 1.1f * lo;
-  };
+  // Camera-side supersampling: which pixels get camera paths.
+  std::optional<CameraSideActivity> camera_side;
+  if (opt.camera_paths > 0) camera_side.emplace(scene, filter, sharp_lights.get(), opt, &row_stats);
 
   tbb::parallel_for(0, set.height, [&](int y) {
     ReceiverStats& st = row_stats[y];
@@ -342,8 +413,7 @@ ReceiverSet GenerateReceivers(const Scene& scene, const FilterSampler& filter,
         // Film position: scrambled Sobol point warped by the filter (importance sampling).
         Vec2 u{Sobol2DComponent(uint32_t(s), 0, scramble0), Sobol2DComponent(uint32_t(s), 1, scramble1)};
         FilterSample fs = filter.Sample(u);
-        Vec2 p_film{float(x) + 0.5f + fs.p.x, float(y) + 0.5f + fs.p.y};
-        Ray ray = scene.camera().GenerateRay(p_film, {rng.Uniform(), rng.Uniform()});
+        const Ray ray = FilmRay(scene, x, y, fs, rng);
         CameraSample& cs = set.samples[index];
         cs.pixel = pixel;
         cs.weight = fs.weight;
@@ -366,47 +436,10 @@ ReceiverSet GenerateReceivers(const Scene& scene, const FilterSampler& filter,
           has_point[index] = 1;
         }
       }
-      if (opt.camera_paths > 0 && active(x, y)) {
-        // Camera-side supersampling: the pixel's filter-weighted mean of what the camera paths
-        // collect by themselves, over its receiver samples and camera_paths more, continuing
-        // the same scrambled Sobol sequence. Each takes one emitter sample per sharp vertex
-        // (the pixel gets camera_paths of them; the receiver samples keep sharp_samples). Film::Resolve divides Σ w (E + G) by Σ w over the
-        // receiver samples, so giving each of them the mean Ē resolves to Ē + Σ w G / Σ w:
-        // two unbiased estimates of two disjoint sets of paths (each path ends where a
-        // receiver would start, so none is counted twice).
-        const size_t first = size_t(pixel) * spp;
-        double sum_w = 0, receiver_w = 0, sum[3] = {0, 0, 0};
-        auto add = [&](float w, RGB e) {
-          if (!e.IsFinite() || !std::isfinite(w)) return;  // dropped, as Film drops such a sample
-          const double wd = double(w);
-          sum_w += wd;
-          sum[0] += wd * double(e.r); sum[1] += wd * double(e.g); sum[2] += wd * double(e.b);
-        };
-        for (int s = 0; s < spp; ++s) {
-          add(set.samples[first + s].weight, set.samples[first + s].emitted);
-          receiver_w += double(set.samples[first + s].weight);
-        }
+      if (camera_side && camera_side->active(x, y)) {
         ++st.camera_active_pixels;
-        for (int k = 0; k < opt.camera_paths; ++k) {
-          const uint32_t s = uint32_t(spp + k);
-          Vec2 u{Sobol2DComponent(s, 0, scramble0), Sobol2DComponent(s, 1, scramble1)};
-          FilterSample fs = filter.Sample(u);
-          Vec2 p_film{float(x) + 0.5f + fs.p.x, float(y) + 0.5f + fs.p.y};
-          Ray ray = scene.camera().GenerateRay(p_film, {rng.Uniform(), rng.Uniform()});
-          ++st.camera_paths;
-          if (!IsFinite(ray.o) || !IsFinite(ray.d)) {
-            ++st.nonfinite_rays;
-            add(fs.weight, RGB(0.f));
-            continue;
-          }
-          const PathEnd end = TraceCameraPath(scene, sharp_lights.get(), 1, ray, opt.max_depth, -1, rng);
-          add(fs.weight, end.emitted);
-        }
-        // A pixel whose receiver weights cancel has no defined value either way.
-        if (sum_w != 0 && receiver_w != 0) {
-          const RGB mean(float(sum[0] / sum_w), float(sum[1] / sum_w), float(sum[2] / sum_w));
-          for (int s = 0; s < spp; ++s) set.samples[first + s].emitted = mean;
-        }
+        const std::span<CameraSample> pixel_samples(set.samples.data() + size_t(pixel) * spp, size_t(spp));
+        AddCameraPaths(scene, filter, sharp_lights.get(), opt, x, y, scramble0, scramble1, rng, pixel_samples, &st);
       }
     }
   });
