@@ -288,22 +288,31 @@ class CameraSideActivity {
   }
 
   // A light whose image covers a small share of a pixel (a bulb far away, water-caustic's 5 mm
-  // square) is found by no pilot path: every emissive shape whose projected bounds fit in
-  // kSmallEmitterPixels² marks them and one pixel around them. Larger emitters are the pilot's
-  // (their edges vary, their interiors do not). Pinhole cameras only (Camera::Project).
+  // square) is found by no pilot path: every emissive shape whose pinhole image fits in
+  // kSmallEmitterPixels² marks its image and one pixel around it. Through a thin lens that image
+  // is the disks of confusion of its points (Camera::ImageBounds), where each camera path hits
+  // the light even more rarely, up to kSmallEmitterBlurPixels across (beyond that, the light is
+  // left to the pilot). Larger emitters are the pilot's: their edges vary, their interiors not.
   void MarkSmallEmitters(const Scene& scene) {
     for (const Shape& shape : scene.shapes()) {
       if (shape.area_emitter < 0) continue;
-      float x0 = kInfinity, y0 = kInfinity, x1 = -kInfinity, y1 = -kInfinity;
+      Vec2 pin_lo{kInfinity, kInfinity}, pin_hi{-kInfinity, -kInfinity};  // the pinhole image
+      Vec2 lo{kInfinity, kInfinity}, hi{-kInfinity, -kInfinity};          // with the lens's blur
       bool small = true;
       auto add_point = [&](Vec3 p) {
-        const std::optional<Vec2> r = scene.camera().Project(p);
+        const std::optional<std::pair<Vec2, Vec2>> r = scene.camera().ImageBounds(p);
         if (!r) {
           small = false;
           return;
         }
-        x0 = std::min(x0, r->x), y0 = std::min(y0, r->y), x1 = std::max(x1, r->x), y1 = std::max(y1, r->y);
-        small = x1 - x0 <= kSmallEmitterPixels && y1 - y0 <= kSmallEmitterPixels;
+        // A disk of confusion is centred on the pinhole image.
+        const Vec2 c{0.5f * (r->first.x + r->second.x), 0.5f * (r->first.y + r->second.y)};
+        pin_lo = {std::min(pin_lo.x, c.x), std::min(pin_lo.y, c.y)};
+        pin_hi = {std::max(pin_hi.x, c.x), std::max(pin_hi.y, c.y)};
+        lo = {std::min(lo.x, r->first.x), std::min(lo.y, r->first.y)};
+        hi = {std::max(hi.x, r->second.x), std::max(hi.y, r->second.y)};
+        small = pin_hi.x - pin_lo.x <= kSmallEmitterPixels && pin_hi.y - pin_lo.y <= kSmallEmitterPixels &&
+                hi.x - lo.x <= kSmallEmitterBlurPixels && hi.y - lo.y <= kSmallEmitterBlurPixels;
       };
       if (shape.kind == ShapeKind::kSphere) {
         for (int c = 0; c < 8 && small; ++c)
@@ -313,8 +322,8 @@ class CameraSideActivity {
         for (size_t i = 0; i < shape.positions.size() && small; ++i) add_point(shape.positions[i]);
       }
       if (!small) continue;
-      const int px0 = std::max(0, int(std::floor(x0)) - 1), px1 = std::min(width_ - 1, int(std::floor(x1)) + 1);
-      const int py0 = std::max(0, int(std::floor(y0)) - 1), py1 = std::min(height_ - 1, int(std::floor(y1)) + 1);
+      const int px0 = std::max(0, int(std::floor(lo.x)) - 1), px1 = std::min(width_ - 1, int(std::floor(hi.x)) + 1);
+      const int py0 = std::max(0, int(std::floor(lo.y)) - 1), py1 = std::min(height_ - 1, int(std::floor(hi.y)) + 1);
       for (int y = py0; y <= py1; ++y)
         for (int x = px0; x <= px1; ++x) small_emitter_[size_t(y) * width_ + x] = 1;
     }

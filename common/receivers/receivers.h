@@ -79,8 +79,7 @@ struct ReceiverOptions {
   // itself (emission seen directly or through delta and sharp lobes, next-event estimation at
   // sharp vertices) and end where a receiver would start. A pilot of kCameraPilotPaths paths per
   // pixel, on its own random stream and never part of the image, marks the pixels where that
-  // light varies, and so does the image of every small emitter (kSmallEmitterPixels, pinhole
-  // cameras); every pixel within one of a marked pixel gets `camera_paths` more paths. The
+  // light varies, and so does the image of every small emitter (kSmallEmitterPixels); every pixel within one of a marked pixel gets `camera_paths` more paths. The
   // pixel's camera-side radiance is then the filter-weighted mean over these and its `spp`
   // receiver samples; the gather still runs on the receivers. 0: no pilot, each sample keeps
   // its own (the estimator before this option).
@@ -93,6 +92,8 @@ inline constexpr int kCameraPilotPaths = 4;
 // An emissive shape whose image fits in this many pixels across activates its pixels without the
 // pilot (receivers.cpp).
 inline constexpr float kSmallEmitterPixels = 4.f;
+// ... and whose image through a thin lens, blurred, fits in this many.
+inline constexpr float kSmallEmitterBlurPixels = 64.f;
 
 // The scene's pixel filter (PixelFilter directive, or the override the scene was built with).
 std::unique_ptr<Filter> MakePixelFilter(const RenderHints& hints);

@@ -66,14 +66,38 @@ Camera Camera::Create(const CameraDesc& desc, int width, int height) {
   return cam;
 }
 
-std::optional<Vec2> Camera::Project(Vec3 p_world) const {
-  if (lens_radius_ > 0.f) return std::nullopt;
-  const Vec3 p_camera = camera_from_world_.ApplyPoint(p_world);
+std::optional<std::pair<Vec2, Vec2>> Camera::ImageBounds(Vec3 p_world) const {
+  const Vec3 p = camera_from_world_.ApplyPoint(p_world);
   // The perspective projection divides by z: only points in front of the eye have an image.
-  if (type_ == Type::kPerspective && !(p_camera.z > 1e-6f)) return std::nullopt;
-  const Vec3 p_raster = raster_from_camera_.ApplyPoint(p_camera);
-  if (!std::isfinite(p_raster.x) || !std::isfinite(p_raster.y)) return std::nullopt;
-  return Vec2{p_raster.x, p_raster.y};
+  if (type_ == Type::kPerspective && !(p.z > 1e-6f)) return std::nullopt;
+  // The film position whose ray from lens point l passes through p (GenerateRay's thin lens
+  // inverted): perspective, the pinhole image of where the line from l through p meets the plane
+  // of focus; orthographic, the film point moved by -l (1 - z / focal distance). The map is
+  // affine in l, so the lens disk's image is a disk and its four axis points bound it.
+  auto image = [&](Vec2 l) -> std::optional<Vec2> {
+    Vec3 p_film_camera;
+    if (type_ == Type::kPerspective) {
+      const Vec3 o{l.x, l.y, 0};
+      const Vec3 p_focus = o + (p - o) * (focal_distance_ / p.z);
+      p_film_camera = p_focus;
+    } else {
+      const float k = 1.f - p.z / focal_distance_;
+      p_film_camera = {p.x - l.x * k, p.y - l.y * k, 0};
+    }
+    const Vec3 r = raster_from_camera_.ApplyPoint(p_film_camera);
+    if (!std::isfinite(r.x) || !std::isfinite(r.y)) return std::nullopt;
+    return Vec2{r.x, r.y};
+  };
+  Vec2 lo{kInfinity, kInfinity}, hi{-kInfinity, -kInfinity};
+  const float R = lens_radius_;
+  const Vec2 lens_points[4] = {{R, 0}, {-R, 0}, {0, R}, {0, -R}};
+  for (int i = 0; i < (R > 0.f ? 4 : 1); ++i) {
+    const std::optional<Vec2> q = image(R > 0.f ? lens_points[i] : Vec2{0, 0});
+    if (!q) return std::nullopt;
+    lo = {std::min(lo.x, q->x), std::min(lo.y, q->y)};
+    hi = {std::max(hi.x, q->x), std::max(hi.y, q->y)};
+  }
+  return std::pair{lo, hi};
 }
 
 Ray Camera::GenerateRay(Vec2 p_film, Vec2 u_lens) const {

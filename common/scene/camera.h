@@ -5,6 +5,7 @@
 
 #include <optional>
 #include <string>
+#include <utility>
 
 #include "common/scene/scene_description.h"
 #include "common/util/math.h"
@@ -26,10 +27,10 @@ class Camera {
   // Ray through raster position p_film (continuous pixel coordinates) and lens sample u_lens.
   Ray GenerateRay(Vec2 p_film, Vec2 u_lens) const;
 
-  // Raster position of a world point seen through a pinhole camera (perspective or orthographic),
-  // if it lies in front of the camera; nullopt behind it, and for a thin lens (lensradius > 0),
-  // whose image of a point is a disk, not a position.
-  std::optional<Vec2> Project(Vec3 p_world) const;
+  // Raster bounds (lower, upper corner) of the image of a world point in front of the camera: a
+  // single position through a pinhole, the disk of confusion through a thin lens (lensradius >
+  // 0); nullopt for a point behind the camera.
+  std::optional<std::pair<Vec2, Vec2>> ImageBounds(Vec3 p_world) const;
 
   Vec3 position() const { return world_from_camera_.ApplyPoint({0, 0, 0}); }
   Type type() const { return type_; }

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <array>
+#include <regex>
 #include <vector>
 #include <tbb/global_control.h>
 
@@ -287,12 +288,12 @@ TEST(CameraSideSupersampling, ALightSmallerThanAPixelIsFoundByItsProjection) {
   const std::string scene =
       "Film \"rgb\" \"integer xresolution\" [24] \"integer yresolution\" [24]\n"
       "PixelFilter \"box\"\nIntegrator \"path\" \"integer maxdepth\" [1]\n"
-      "LookAt 0 0 5  0 0 0  0 1 0\nCamera \"orthographic\" \"float screenwindow\" [-1 1 -1 1]\n"
+      "LookAt 0 0 5  0 0 0  0 1 0\nCamera \"orthographic\" \"float screenwindow\" [-1 1 -1 1] CAMERA\n"
       "WorldBegin\nAttributeBegin\n  AreaLightSource \"diffuse\" \"rgb L\" [1000 1000 1000] \"bool twosided\" true\n"
       "  Material \"diffuse\" \"rgb reflectance\" [0 0 0]\n"
       "  Shape \"trianglemesh\" \"point3 P\" [" + v(c - h, c - h) + v(c + h, c - h) + v(c + h, c + h) + v(c - h, c + h) +
       "]\n    \"integer indices\" [0 1 2 0 2 3]\nAttributeEnd\n";
-  const std::string path = dir.Write("speck.pbrt", scene);
+  const std::string path = dir.Write("speck.pbrt", std::regex_replace(scene, std::regex("CAMERA"), ""));
   // Eight seeds: the pilot alone would leave the pixel inactive in most of them.
   for (uint64_t seed = 1; seed <= 8; ++seed) {
     RenderSettings s;
@@ -307,11 +308,30 @@ TEST(CameraSideSupersampling, ALightSmallerThanAPixelIsFoundByItsProjection) {
       sum += double(p.g);
       lit += p.g > 0;
     }
-    const double expected = 1000 * side * side / (pixel * pixel);  // 5.76
+    const double expected = 1000 * side * side / (pixel * pixel);  // 57.6
     EXPECT_NEAR(sum, expected, 0.3 * expected) << "seed " << seed;
     EXPECT_EQ(lit, 1u) << "seed " << seed;  // the light lies inside one pixel
     // Its bounds and the pixels around them, 3×3, are active; nothing else is.
     EXPECT_EQ(out.stats["receivers"]["camera_active_pixels"], 9) << "seed " << seed;
+  }
+  // Through a thin lens: in focus (the light 4.5 from the camera) its image is still a point;
+  // focused at 2.5 it is a disk of radius 0.25 · (4.5/2.5 - 1) = 0.2, 2.4 pixels, each of whose
+  // pixels sees the light in ~0.3% of its paths. The active pixels cover it (its 6×6 bounds
+  // and one pixel around, at least) and the camera paths find its energy, the same.
+  for (const auto& [lens, min_active] : {std::pair{"\"float lensradius\" [0.25] \"float focaldistance\" [4.5]", 9},
+                                         std::pair{"\"float lensradius\" [0.25] \"float focaldistance\" [2.5]", 36}}) {
+    const std::string lens_path = dir.Write("speck-lens.pbrt", std::regex_replace(scene, std::regex("CAMERA"), lens));
+    RenderSettings s;
+    s.method = "brute";
+    s.lights = 10;
+    s.seed = 1;
+    s.params = {"camera_paths=2048"};
+    RenderOutput out = RenderScene(lens_path, s);
+    double sum = 0;
+    for (const RGB& p : out.image.pixels) sum += double(p.g);
+    const double expected = 1000 * side * side / (pixel * pixel);
+    EXPECT_NEAR(sum, expected, 0.3 * expected) << lens;
+    EXPECT_GE(out.stats["receivers"]["camera_active_pixels"].get<int>(), min_active) << lens;
   }
 }
 
