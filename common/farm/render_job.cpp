@@ -101,10 +101,15 @@ void ApplySharpSplit(const RenderSettings& settings, Plan* plan) {
 // vertex. Then the pixels the pilot marks (a visible light's edge, a light's reflection in a
 // sharp lobe) get 256 more camera paths: a few rays each, against the hundreds to thousands of
 // shadow rays of one receiver's gather. docs/default-vs-path.md measures the effect.
+// Materials with a lobe the sharp split made sharp.
+size_t SharpMaterials(const Scene& scene) {
+  size_t n = 0;
+  for (const Material& m : scene.materials()) n += HasSharpLobe(m);
+  return n;
+}
+
 int CameraPathsFor(const Scene& scene, const Effects& effects) {
-  bool sharp = false;
-  for (const Material& m : scene.materials()) sharp = sharp || HasSharpLobe(m);
-  return effects.area_lights || effects.environment || sharp ? kDefaultCameraPaths : 0;
+  return effects.area_lights || effects.environment || SharpMaterials(scene) > 0 ? kDefaultCameraPaths : 0;
 }
 
 // The light tree (when the method needs one) and the matrix over the plan's receivers and lights.
@@ -459,10 +464,8 @@ nlohmann::json MakeStats(const Plan& plan, const RenderSettings& settings,
   // Caustics gathered from photons (caustic_photons.h): zero unless the scene has delta lobes
   // on light paths (or --param caustic_photons asks for them).
   // The sharp-lobe split (docs/rendering.md): its threshold and the materials it made sharp.
-  size_t sharp_materials = 0;
-  for (const Material& m : plan.scene->materials()) sharp_materials += HasSharpLobe(m);
   s["sharp"] = {{"alpha", plan.method->renders_film() ? 0.0 : double(SharpAlpha(plan.matrix_options, settings.lights))},
-                {"materials", sharp_materials}};
+                {"materials", SharpMaterials(*plan.scene)}};
   s["caustics"] = {{"photons", plan.matrix->caustic_photon_target()},
                    {"photons_used", counters.caustic_photons_used},
                    {"energy_fraction", total_lum > 0 ? counters.caustic_gathered / total_lum : 0.0}};

@@ -9,8 +9,9 @@
 // pick, takes hours at a scene's own resolution. With a target, a scene with media chooses
 // between `adaptive-completion` (Huo 2016's media method, the one measured on media scenes) and
 // `brute`, exact: adaptive-completion when its worst measured rel_l2 there
-// (GatherMethodInfo::auto_media_rel_l2, docs/media-methods.md) is within kSafety · target. The accuracy row picks, among the measured surface methods the
-// registry knows, the one with the fewest shadow rays per pixel whose measured rel_l2 is at most
+// (GatherMethodInfo::auto_media_rel_l2, docs/media-methods.md) is within kSafety · target. The
+// accuracy row picks, among the measured surface methods the registry knows, the one with the
+// fewest shadow rays per pixel whose measured rel_l2 is at most
 // kSafety · target (the measurements are one scene: keep a margin); without --param
 // target_error the target is kDefaultTarget (2%).
 //

@@ -78,8 +78,7 @@ std::optional<std::pair<Vec2, Vec2>> Camera::ImageBounds(Vec3 p_world) const {
     Vec3 p_film_camera;
     if (type_ == Type::kPerspective) {
       const Vec3 o{l.x, l.y, 0};
-      const Vec3 p_focus = o + (p - o) * (focal_distance_ / p.z);
-      p_film_camera = p_focus;
+      p_film_camera = o + (p - o) * (focal_distance_ / p.z);
     } else {
       const float k = 1.f - p.z / focal_distance_;
       p_film_camera = {p.x - l.x * k, p.y - l.y * k, 0};

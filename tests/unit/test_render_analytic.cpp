@@ -3,7 +3,6 @@
 
 #include <algorithm>
 #include <array>
-#include <regex>
 #include <vector>
 #include <tbb/global_control.h>
 
@@ -278,60 +277,65 @@ TEST(CameraSideSupersampling, ALightsEdgePixelsConvergeToTheirCoverage) {
 // covers 5.8% of it, so the pilot's 4 paths there miss it four times in five. Its projected
 // bounds activate the pixel instead, and the camera paths find its energy: the image's sum is
 // L × its area over a pixel's area, within the noise of 2049 samples (~117 hits, 9%).
+constexpr double kSpeckPixel = 2.0 / 24, kSpeckSide = 0.02;
+
+// `lens`: extra parameters of the orthographic camera (a thin lens).
+std::string SpeckScene(const std::string& lens) {
+  // The centre of pixel (12, 12) is at (pixel / 2, pixel / 2) in either orientation of the image.
+  const double c = kSpeckPixel / 2, h = kSpeckSide / 2;
+  auto v = [&](double x, double y) { return std::to_string(x) + " " + std::to_string(y) + " 0.5  "; };
+  return "Film \"rgb\" \"integer xresolution\" [24] \"integer yresolution\" [24]\n"
+         "PixelFilter \"box\"\nIntegrator \"path\" \"integer maxdepth\" [1]\n"
+         "LookAt 0 0 5  0 0 0  0 1 0\nCamera \"orthographic\" \"float screenwindow\" [-1 1 -1 1] " + lens + "\n"
+         "WorldBegin\nAttributeBegin\n  AreaLightSource \"diffuse\" \"rgb L\" [1000 1000 1000] \"bool twosided\" true\n"
+         "  Material \"diffuse\" \"rgb reflectance\" [0 0 0]\n"
+         "  Shape \"trianglemesh\" \"point3 P\" [" + v(c - h, c - h) + v(c + h, c - h) + v(c + h, c + h) + v(c - h, c + h) +
+         "]\n    \"integer indices\" [0 1 2 0 2 3]\nAttributeEnd\n";
+}
+
+struct SpeckRender {
+  double sum = 0;  // green over the image
+  size_t lit = 0;  // pixels with any light
+  uint64_t active = 0;
+};
+
+SpeckRender RenderSpeck(const std::string& path, uint64_t seed) {
+  RenderSettings s;
+  s.method = "brute";
+  s.lights = 10;
+  s.seed = seed;
+  s.params = {"camera_paths=2048"};
+  const RenderOutput out = RenderScene(path, s);
+  SpeckRender r;
+  for (const RGB& p : out.image.pixels) {
+    r.sum += double(p.g);
+    r.lit += p.g > 0;
+  }
+  r.active = out.stats["receivers"]["camera_active_pixels"];
+  return r;
+}
+
 TEST(CameraSideSupersampling, ALightSmallerThanAPixelIsFoundByItsProjection) {
   TempDir dir;
-  const int res = 24;
-  const double pixel = 2.0 / res, side = 0.02;
-  // The centre of pixel (12, 12) is at (pixel / 2, pixel / 2) in either orientation of the image.
-  const double c = pixel / 2, h = side / 2;
-  auto v = [&](double x, double y) { return std::to_string(x) + " " + std::to_string(y) + " 0.5  "; };
-  const std::string scene =
-      "Film \"rgb\" \"integer xresolution\" [24] \"integer yresolution\" [24]\n"
-      "PixelFilter \"box\"\nIntegrator \"path\" \"integer maxdepth\" [1]\n"
-      "LookAt 0 0 5  0 0 0  0 1 0\nCamera \"orthographic\" \"float screenwindow\" [-1 1 -1 1] CAMERA\n"
-      "WorldBegin\nAttributeBegin\n  AreaLightSource \"diffuse\" \"rgb L\" [1000 1000 1000] \"bool twosided\" true\n"
-      "  Material \"diffuse\" \"rgb reflectance\" [0 0 0]\n"
-      "  Shape \"trianglemesh\" \"point3 P\" [" + v(c - h, c - h) + v(c + h, c - h) + v(c + h, c + h) + v(c - h, c + h) +
-      "]\n    \"integer indices\" [0 1 2 0 2 3]\nAttributeEnd\n";
-  const std::string path = dir.Write("speck.pbrt", std::regex_replace(scene, std::regex("CAMERA"), ""));
+  const double expected = 1000 * kSpeckSide * kSpeckSide / (kSpeckPixel * kSpeckPixel);  // 57.6
+  const std::string path = dir.Write("speck.pbrt", SpeckScene(""));
   // Eight seeds: the pilot alone would leave the pixel inactive in most of them.
   for (uint64_t seed = 1; seed <= 8; ++seed) {
-    RenderSettings s;
-    s.method = "brute";
-    s.lights = 10;
-    s.seed = seed;
-    s.params = {"camera_paths=2048"};
-    RenderOutput out = RenderScene(path, s);
-    double sum = 0;
-    size_t lit = 0;
-    for (const RGB& p : out.image.pixels) {
-      sum += double(p.g);
-      lit += p.g > 0;
-    }
-    const double expected = 1000 * side * side / (pixel * pixel);  // 57.6
-    EXPECT_NEAR(sum, expected, 0.3 * expected) << "seed " << seed;
-    EXPECT_EQ(lit, 1u) << "seed " << seed;  // the light lies inside one pixel
+    const SpeckRender r = RenderSpeck(path, seed);
+    EXPECT_NEAR(r.sum, expected, 0.3 * expected) << "seed " << seed;
+    EXPECT_EQ(r.lit, 1u) << "seed " << seed;  // the light lies inside one pixel
     // Its bounds and the pixels around them, 3×3, are active; nothing else is.
-    EXPECT_EQ(out.stats["receivers"]["camera_active_pixels"], 9) << "seed " << seed;
+    EXPECT_EQ(r.active, 9u) << "seed " << seed;
   }
   // Through a thin lens: in focus (the light 4.5 from the camera) its image is still a point;
   // focused at 2.5 it is a disk of radius 0.25 · (4.5/2.5 - 1) = 0.2, 2.4 pixels, each of whose
   // pixels sees the light in ~0.3% of its paths. The active pixels cover it (its 6×6 bounds
   // and one pixel around, at least) and the camera paths find its energy, the same.
-  for (const auto& [lens, min_active] : {std::pair{"\"float lensradius\" [0.25] \"float focaldistance\" [4.5]", 9},
-                                         std::pair{"\"float lensradius\" [0.25] \"float focaldistance\" [2.5]", 36}}) {
-    const std::string lens_path = dir.Write("speck-lens.pbrt", std::regex_replace(scene, std::regex("CAMERA"), lens));
-    RenderSettings s;
-    s.method = "brute";
-    s.lights = 10;
-    s.seed = 1;
-    s.params = {"camera_paths=2048"};
-    RenderOutput out = RenderScene(lens_path, s);
-    double sum = 0;
-    for (const RGB& p : out.image.pixels) sum += double(p.g);
-    const double expected = 1000 * side * side / (pixel * pixel);
-    EXPECT_NEAR(sum, expected, 0.3 * expected) << lens;
-    EXPECT_GE(out.stats["receivers"]["camera_active_pixels"].get<int>(), min_active) << lens;
+  for (const auto& [lens, min_active] : {std::pair{"\"float lensradius\" [0.25] \"float focaldistance\" [4.5]", 9u},
+                                         std::pair{"\"float lensradius\" [0.25] \"float focaldistance\" [2.5]", 36u}}) {
+    const SpeckRender r = RenderSpeck(dir.Write("speck-lens.pbrt", SpeckScene(lens)), 1);
+    EXPECT_NEAR(r.sum, expected, 0.3 * expected) << lens;
+    EXPECT_GE(r.active, uint64_t(min_active)) << lens;
   }
 }
 
