@@ -2,6 +2,7 @@
 
 #include <tbb/parallel_for.h>
 
+#include <algorithm>
 #include <optional>
 #include <span>
 
@@ -241,23 +242,30 @@ class CameraSideActivity {
     const size_t npix = size_t(width_) * size_t(height_);
     lo_.assign(npix, 0.f);
     hi_.assign(npix, 0.f);
-    small_emitter_.assign(npix, 0);
+    hit_rate_.assign(npix, kInfinity);
+    min_paths_.assign(npix, 0);
     RunPilot(scene, filter, sharp_lights, opt, row_stats);
     MarkSmallEmitters(scene);
+    MarkSpecularImages(scene, opt);
+    GrantMarkedPaths(opt.camera_paths);
   }
 
-  // Near a small emitter's image, or where the pilot's values over the pixel and its 8
-  // neighbours differ by more than 10%: across pixels, so the edge between a light and its
-  // background is found even where each pixel's own paths agree.
-  bool active(int x, int y) const {
-    if (small_emitter_[size_t(y) * width_ + x]) return true;
+  // Camera paths for pixel (x, y), `base` = ReceiverOptions::camera_paths, 0 for none: where a
+  // small emitter's image (seen directly or through delta interactions) marked the pixel, enough
+  // for about kCameraTargetHits of its paths to find the light, at least `base`; where the
+  // pilot's values over the pixel and its 8 neighbours differ by more than 10% (across pixels,
+  // so the edge between a light and its background is found even where each pixel's own paths
+  // agree), `base`.
+  int paths(int x, int y, int base) const {
+    const uint32_t marked = min_paths_[size_t(y) * width_ + x];
+    if (marked) return std::max(base, int(marked));
     float lo = kInfinity, hi = -kInfinity;
     for (int yy = std::max(0, y - 1); yy <= std::min(height_ - 1, y + 1); ++yy)
       for (int xx = std::max(0, x - 1); xx <= std::min(width_ - 1, x + 1); ++xx) {
         lo = std::min(lo, lo_[size_t(yy) * width_ + xx]);
         hi = std::max(hi, hi_[size_t(yy) * width_ + xx]);
       }
-    return lo < 0.f || hi > 1.1f * lo;
+    return lo < 0.f || hi > 1.1f * lo ? base : 0;
   }
 
  private:
@@ -287,19 +295,56 @@ class CameraSideActivity {
     });
   }
 
+  // Marks pixels where one path in 1/hit_rate finds a light (the rarest light a pixel is
+  // marked for sets its count).
+  void Mark(int x0, int y0, int x1, int y1, double hit_rate) {
+    for (int y = std::max(0, y0); y <= std::min(height_ - 1, y1); ++y)
+      for (int x = std::max(0, x0); x <= std::min(width_ - 1, x1); ++x) {
+        float& h = hit_rate_[size_t(y) * width_ + x];
+        h = std::min(h, float(std::max(hit_rate, 1e-12)));
+      }
+  }
+
+  // Each marked pixel asks for kCameraTargetHits / hit rate paths, at least `base`, at most
+  // kMaxCameraPaths. Granted from the highest hit rate down (the light found for the fewest
+  // paths first; ties in pixel order, so the choice is deterministic) while the total stays
+  // within kMarkedPathsPerPixel per pixel of the image (at least kMinMarkedPaths): where the
+  // estimate says a light is one hit in a million, no count is worth its time, and the pixel
+  // keeps `base`.
+  void GrantMarkedPaths(int base) {
+    std::vector<uint32_t> marked;
+    for (uint32_t i = 0; i < uint32_t(hit_rate_.size()); ++i)
+      if (hit_rate_[i] < kInfinity) marked.push_back(i);
+    std::stable_sort(marked.begin(), marked.end(), [&](uint32_t a, uint32_t b) { return hit_rate_[a] > hit_rate_[b]; });
+    double budget = std::max(kMinMarkedPaths, kMarkedPathsPerPixel * double(hit_rate_.size()));
+    for (const uint32_t i : marked) {
+      const double want = std::clamp(std::ceil(kCameraTargetHits / double(hit_rate_[i])), double(std::max(base, 1)),
+                                     double(std::max(base, kMaxCameraPaths)));
+      const double granted = want <= budget ? want : double(std::max(base, 1));
+      budget -= std::min(budget, granted);
+      min_paths_[i] = uint32_t(granted);
+    }
+  }
+
   // A light whose image covers a small share of a pixel (a bulb far away, water-caustic's 5 mm
   // square) is found by no pilot path: every emissive shape whose pinhole image fits in
   // kSmallEmitterPixels² marks its image and one pixel around it. Through a thin lens that image
   // is the disks of confusion of its points (Camera::ImageBounds), where each camera path hits
   // the light even more rarely, up to kSmallEmitterBlurPixels across (beyond that, the light is
   // left to the pilot). Larger emitters are the pilot's: their edges vary, their interiors not.
+  // A path in a marked pixel hits the light with about the image's area over its blurred area
+  // (both from the bounds: an estimate, which sets only how many paths look).
   void MarkSmallEmitters(const Scene& scene) {
     for (const Shape& shape : scene.shapes()) {
       if (shape.area_emitter < 0) continue;
       Vec2 pin_lo{kInfinity, kInfinity}, pin_hi{-kInfinity, -kInfinity};  // the pinhole image
       Vec2 lo{kInfinity, kInfinity}, hi{-kInfinity, -kInfinity};          // with the lens's blur
+      Vec3 b_lo{kInfinity, kInfinity, kInfinity}, b_hi{-kInfinity, -kInfinity, -kInfinity};  // world bounds
       bool small = true;
       auto add_point = [&](Vec3 p) {
+        b_lo = Min(b_lo, p);
+        b_hi = Max(b_hi, p);
+        if (!small) return;
         const std::optional<std::pair<Vec2, Vec2>> r = scene.camera().ImageBounds(p);
         if (!r) {
           small = false;
@@ -315,34 +360,196 @@ class CameraSideActivity {
                 hi.x - lo.x <= kSmallEmitterBlurPixels && hi.y - lo.y <= kSmallEmitterBlurPixels;
       };
       if (shape.kind == ShapeKind::kSphere) {
-        for (int c = 0; c < 8 && small; ++c)
+        for (int c = 0; c < 8; ++c)
           add_point(shape.center + Vec3{c & 1 ? shape.radius : -shape.radius, c & 2 ? shape.radius : -shape.radius,
                                         c & 4 ? shape.radius : -shape.radius});
       } else {
-        for (size_t i = 0; i < shape.positions.size() && small; ++i) add_point(shape.positions[i]);
+        for (const Vec3& p : shape.positions) add_point(p);
       }
+      if (!(b_lo.x <= b_hi.x)) continue;
+      const Vec3 center = 0.5f * (b_lo + b_hi);
+      emitters_.push_back({center, shape.kind == ShapeKind::kSphere ? shape.radius : 0.5f * Length(b_hi - b_lo)});
       if (!small) continue;
-      const int px0 = std::max(0, int(std::floor(lo.x)) - 1), px1 = std::min(width_ - 1, int(std::floor(hi.x)) + 1);
-      const int py0 = std::max(0, int(std::floor(lo.y)) - 1), py1 = std::min(height_ - 1, int(std::floor(hi.y)) + 1);
-      for (int y = py0; y <= py1; ++y)
-        for (int x = px0; x <= px1; ++x) small_emitter_[size_t(y) * width_ + x] = 1;
+      const double image = std::max(double(pin_hi.x - pin_lo.x) * double(pin_hi.y - pin_lo.y), 1e-4);
+      const double blurred = std::max(1.0, double(hi.x - lo.x) * double(hi.y - lo.y));
+      Mark(int(std::floor(lo.x)) - 1, int(std::floor(lo.y)) - 1, int(std::floor(hi.x)) + 1,
+           int(std::floor(hi.y)) + 1, std::min(1.0, image) / blurred);
     }
   }
 
+  // Light reaching the camera through delta interactions (a small light's reflection in water,
+  // its image through a glass sphere: L S+ E) is as hard to find as a small light seen directly,
+  // and more so: a dielectric sends only its Fresnel share of paths the way of the image. Probes
+  // through each pixel's centre and corners (the lens's centre) follow every branch of their
+  // delta chains; the segments of one branch, cut by the plane through an emitter's centre,
+  // give a disk that stands for the pixel's footprint there (docs/rendering.md, "Camera-side
+  // supersampling"). Only when the scene has a delta lobe that is not a sharp one.
+  // A ray leaving a delta vertex, on a branch of the camera ray's delta chain.
+  struct ProbeSegment {
+    uint32_t branch;    // bit i: refraction at the i-th delta vertex; bits 27-31: the vertex count
+    float probability;  // of the branch's choices (Fresnel)
+    Vec3 o, d;
+  };
+
+  static void ProbeDeltaChains(const Scene& scene, const Ray& camera_ray, int max_depth,
+                               std::vector<ProbeSegment>* out) {
+    out->clear();
+    struct Node {
+      Ray ray;
+      uint32_t branch;
+      int vertices;
+      float probability;
+    };
+    Node stack[kProbeSegments];
+    int top = 0;
+    stack[top++] = {camera_ray, 0, 0, 1.f};
+    int traced = 0;
+    while (top > 0 && traced < kProbeSegments) {
+      Node n = stack[--top];
+      for (int passthrough = 0; passthrough < 64; ++passthrough) {
+        ++traced;
+        SurfaceHit hit;
+        const bool found = scene.Intersect(n.ray, &hit);
+        if (n.vertices > 0 && passthrough == 0)
+          out->push_back({n.branch | uint32_t(n.vertices) << 27, n.probability, n.ray.o, n.ray.d});
+        if (!found) break;
+        const Material& m = scene.materials()[scene.shapes()[hit.shape].material];
+        const uint32_t flags = MaterialFlags(m);
+        if (flags == 0) {  // an interface: straight on
+          n.ray.o = OffsetRayOrigin(hit.p, hit.ng, n.ray.d);
+          continue;
+        }
+        if (!(flags & kBxDFSpecular) || HasSharpLobe(m) || n.vertices + 1 > std::min(max_depth - 1, 26)) break;
+        const Frame frame(hit.ns);
+        const Vec3 wo = frame.ToLocal(-n.ray.d);
+        uint32_t previous = 0;
+        for (const float uc : {0.f, 0x1.fffffep-1f}) {
+          const auto bs = SampleBSDF(m, wo, uc, {0.5f, 0.5f}, TransportMode::kRadiance);
+          if (!bs || !(bs->pdf > 0) || !bs->IsSpecular() || bs->flags == previous || top == kProbeSegments) continue;
+          previous = bs->flags;
+          const Vec3 wi = frame.FromLocal(bs->wi);
+          const uint32_t refracted = (bs->flags & kBxDFTransmission) ? 1u << n.vertices : 0u;
+          stack[top++] = {{OffsetRayOrigin(hit.p, hit.ng, wi), wi, kInfinity}, n.branch | refracted, n.vertices + 1,
+                          n.probability * std::min(bs->pdf, 1.f)};
+        }
+        break;
+      }
+    }
+  }
+
+  void MarkSpecularImages(const Scene& scene, const ReceiverOptions& opt) {
+    if (emitters_.empty() || emitters_.size() > kProbeEmitters) return;
+    bool delta = false;
+    for (const Material& m : scene.materials()) delta |= (MaterialFlags(m) & kBxDFSpecular) && !HasSharpLobe(m);
+    if (!delta) return;
+    struct Marks {
+      int x, y;
+      double hit_rate;
+    };
+    std::vector<std::vector<Marks>> rows(height_);
+    tbb::parallel_for(0, height_, [&](int y) {
+      auto probe = [&](float fx, float fy, std::vector<ProbeSegment>* segments) {
+        const Ray ray = scene.camera().GenerateRay({fx, fy}, {0.5f, 0.5f});
+        if (IsFinite(ray.o) && IsFinite(ray.d)) ProbeDeltaChains(scene, ray, opt.max_depth, segments);
+      };
+      // The probes at the pixel corners of rows y and y + 1, and at the pixels' centres.
+      std::vector<std::vector<ProbeSegment>> corners[2], centre(static_cast<size_t>(width_));
+      for (int j = 0; j < 2; ++j) {
+        corners[j].resize(size_t(width_) + 1);
+        for (int x = 0; x <= width_; ++x) probe(float(x), float(y + j), &corners[j][x]);
+      }
+      for (int x = 0; x < width_; ++x) probe(float(x) + 0.5f, float(y) + 0.5f, &centre[x]);
+      std::vector<uint32_t> branches;
+      for (int x = 0; x < width_; ++x) {
+        const std::vector<ProbeSegment>* c[5] = {&centre[x], &corners[0][x], &corners[0][x + 1], &corners[1][x],
+                                                 &corners[1][x + 1]};
+        branches.clear();
+        for (const auto* segments : c)
+          for (const ProbeSegment& t : *segments) branches.push_back(t.branch);
+        std::sort(branches.begin(), branches.end());
+        branches.erase(std::unique(branches.begin(), branches.end()), branches.end());
+        for (const uint32_t branch : branches) {
+          // The pixel's samples of this branch: its directions, where they leave from.
+          const ProbeSegment* q[5];
+          int n = 0;
+          for (const auto* segments : c)
+            for (const ProbeSegment& t : *segments)
+              if (t.branch == branch) {
+                q[n++] = &t;
+                break;
+              }
+          if (n < 2) continue;
+          Vec3 m{0, 0, 0}, o{0, 0, 0};
+          float probability = 1;
+          for (int k = 0; k < n; ++k) {
+            m = m + q[k]->d;
+            o = o + q[k]->o;
+            probability = std::min(probability, q[k]->probability);
+          }
+          if (!(Length(m) > 0.5f * float(n))) continue;  // directions too far apart for one plane
+          m = Normalize(m);
+          o = o / float(n);
+          for (const EmitterBound& e : emitters_) {
+            // Where the samples' rays cross the plane through the emitter's centre normal to
+            // their mean direction: a disk around them stands for the pixel's footprint there.
+            Vec3 at[5], mean{0, 0, 0};
+            bool ok = true;
+            for (int k = 0; k < n && ok; ++k) {
+              const float dn = Dot(q[k]->d, m), along = Dot(e.center - q[k]->o, m);
+              ok = dn > 0.1f && along > 0;
+              at[k] = q[k]->o + q[k]->d * (along / dn);
+              mean = mean + at[k] / float(n);
+            }
+            if (!ok) continue;
+            double spread = 0;
+            for (int k = 0; k < n; ++k) spread = std::max(spread, double(Length(at[k] - mean)));
+            const double r = double(e.radius), off = double(Length(e.center - mean));
+            if (!(spread > 0) || off > spread + r || r > double(kSmallEmitterPixels) * spread) continue;
+            const Vec3 to = e.center - o;
+            const float dist = Length(to);
+            if (!(dist > e.radius)) continue;
+            // ... and seen from where the paths leave: the first thing towards it is an emitter.
+            SurfaceHit hit;
+            const Vec3 dir = to / dist;
+            if (scene.Intersect({o + dir * (1e-3f * dist), dir, dist}, &hit) &&
+                scene.shapes()[hit.shape].area_emitter < 0)
+              continue;
+            // One path in (spread/r)² finds the light, along a branch taken with `probability`.
+            const double hit_rate = double(probability) * std::min(1.0, r * r / (spread * spread));
+            rows[y].push_back({x, y, hit_rate});
+          }
+        }
+      }
+    });
+    // A marked pixel and the pixels around it (whose filters reach into it) get its paths.
+    // Marks only raise counts (max), so their order does not matter: the same bits on any threads.
+    for (const std::vector<Marks>& row : rows)
+      for (const Marks& mk : row) Mark(mk.x - 1, mk.y - 1, mk.x + 1, mk.y + 1, mk.hit_rate);
+  }
+
+  struct EmitterBound {
+    Vec3 center;
+    float radius;
+  };
+  static constexpr int kProbeSegments = 16;     // segments one probe traces, at most
+  static constexpr size_t kProbeEmitters = 256;  // emissive shapes the probe checks, at most
+
   int width_, height_;
   std::vector<float> lo_, hi_;
-  std::vector<uint8_t> small_emitter_;
+  std::vector<float> hit_rate_;      // of the rarest small light a pixel is marked for; ∞: none
+  std::vector<uint32_t> min_paths_;  // camera paths granted to a marked pixel; 0: not marked
+  std::vector<EmitterBound> emitters_;
 };
 
-// Camera-side supersampling of one active pixel: its camera_paths more paths continue the
+// Camera-side supersampling of one active pixel: its `paths` more paths continue the
 // pixel's scrambled Sobol sequence after its receiver samples, each with one emitter sample per
-// sharp vertex (the pixel gets camera_paths of them; the receiver samples keep sharp_samples).
+// sharp vertex (the pixel gets `paths` of them; the receiver samples keep sharp_samples).
 // Film::Resolve divides Σ w (E + G) by Σ w over the receiver samples, so giving each of them the
 // filter-weighted mean Ē over all the pixel's paths resolves to Ē + Σ w G / Σ w: two unbiased
 // estimates of two disjoint sets of paths (a path ends where a receiver would start).
 void AddCameraPaths(const Scene& scene, const FilterSampler& filter, const EmitterSampler* sharp_lights,
-                    const ReceiverOptions& opt, int x, int y, uint32_t scramble0, uint32_t scramble1, Rng& rng,
-                    std::span<CameraSample> samples, ReceiverStats* st) {
+                    const ReceiverOptions& opt, int paths, int x, int y, uint32_t scramble0, uint32_t scramble1,
+                    Rng& rng, std::span<CameraSample> samples, ReceiverStats* st) {
   double sum_w = 0, receiver_w = 0, sum[3] = {0, 0, 0};
   auto add = [&](float w, RGB e) {
     if (!e.IsFinite() || !std::isfinite(w)) return;  // dropped, as Film drops such a sample
@@ -354,7 +561,7 @@ void AddCameraPaths(const Scene& scene, const FilterSampler& filter, const Emitt
     add(cs.weight, cs.emitted);
     receiver_w += double(cs.weight);
   }
-  for (int k = 0; k < opt.camera_paths; ++k) {
+  for (int k = 0; k < paths; ++k) {
     const uint32_t s = uint32_t(samples.size()) + uint32_t(k);
     const FilterSample fs =
         filter.Sample({Sobol2DComponent(s, 0, scramble0), Sobol2DComponent(s, 1, scramble1)});
@@ -445,10 +652,11 @@ ReceiverSet GenerateReceivers(const Scene& scene, const FilterSampler& filter,
           has_point[index] = 1;
         }
       }
-      if (camera_side && camera_side->active(x, y)) {
+      if (const int paths = camera_side ? camera_side->paths(x, y, opt.camera_paths) : 0; paths > 0) {
         ++st.camera_active_pixels;
         const std::span<CameraSample> pixel_samples(set.samples.data() + size_t(pixel) * spp, size_t(spp));
-        AddCameraPaths(scene, filter, sharp_lights.get(), opt, x, y, scramble0, scramble1, rng, pixel_samples, &st);
+        AddCameraPaths(scene, filter, sharp_lights.get(), opt, paths, x, y, scramble0, scramble1, rng, pixel_samples,
+                       &st);
       }
     }
   });

@@ -79,7 +79,10 @@ struct ReceiverOptions {
   // itself (emission seen directly or through delta and sharp lobes, next-event estimation at
   // sharp vertices) and end where a receiver would start. A pilot of kCameraPilotPaths paths per
   // pixel, on its own random stream and never part of the image, marks the pixels where that
-  // light varies, and so does the image of every small emitter (kSmallEmitterPixels); every pixel within one of a marked pixel gets `camera_paths` more paths. The
+  // light varies: every pixel within one of a marked pixel gets `camera_paths` more paths. The
+  // image of every small emitter (kSmallEmitterPixels), seen directly or through delta
+  // interactions (found by probing each pixel's delta chains), marks its pixels too, with paths
+  // for about kCameraTargetHits hits (at least `camera_paths`). The
   // pixel's camera-side radiance is then the filter-weighted mean over these and its `spp`
   // receiver samples; the gather still runs on the receivers. 0: no pilot, each sample keeps
   // its own (the estimator before this option).
@@ -94,6 +97,15 @@ inline constexpr int kCameraPilotPaths = 4;
 inline constexpr float kSmallEmitterPixels = 4.f;
 // ... and whose image through a thin lens, blurred, fits in this many.
 inline constexpr float kSmallEmitterBlurPixels = 64.f;
+// A pixel marked by a small emitter's image (seen directly or through delta interactions) gets
+// enough camera paths for about this many of them to hit the light, by the image's estimated
+// share of the pixel and the Fresnel odds of the branch it lies on, and at most kMaxCameraPaths
+// (or camera_paths, if more); the highest estimated hit rates first, while the marked pixels'
+// paths stay within kMarkedPathsPerPixel times the image's pixels (or kMinMarkedPaths).
+inline constexpr double kCameraTargetHits = 64;
+inline constexpr int kMaxCameraPaths = 65536;
+inline constexpr double kMarkedPathsPerPixel = 4;
+inline constexpr double kMinMarkedPaths = 1 << 20;
 
 // The scene's pixel filter (PixelFilter directive, or the override the scene was built with).
 std::unique_ptr<Filter> MakePixelFilter(const RenderHints& hints);

@@ -339,6 +339,51 @@ TEST(CameraSideSupersampling, ALightSmallerThanAPixelIsFoundByItsProjection) {
   }
 }
 
+// The same light seen only in a smooth glass plane (L S E): the orthographic camera looks down
+// on the plane z = -y, which reflects its rays into +y, onto a 0.02 square at y = 3 whose mirror
+// image lies inside pixel (12, 12). A path there finds it with the pixel's share 5.8% times the
+// Fresnel reflectance at 45°, one in ~340; the 4-path pilot never sees it, and 2049 paths would
+// hit it ~6 times. The delta-chain probe marks the image and gives its 3×3 pixels enough paths
+// for ~40 hits each, so over four seeds the image holds L·R·A/A_pixel within 25% (~160 hits).
+std::string GlassSpeckScene() {
+  const double c = kSpeckPixel / 2, h = kSpeckSide / 2;
+  // Screen (x, y) reflects onto (x, 3, -y).
+  auto v = [&](double x, double y) { return std::to_string(x) + " 3 " + std::to_string(-y) + "  "; };
+  return "Film \"rgb\" \"integer xresolution\" [24] \"integer yresolution\" [24]\n"
+         "PixelFilter \"box\"\nIntegrator \"path\" \"integer maxdepth\" [3]\n"
+         "LookAt 0 0 5  0 0 0  0 1 0\nCamera \"orthographic\" \"float screenwindow\" [-1 1 -1 1]\n"
+         "WorldBegin\nAttributeBegin\n  AreaLightSource \"diffuse\" \"rgb L\" [1000 1000 1000] \"bool twosided\" true\n"
+         "  Material \"diffuse\" \"rgb reflectance\" [0 0 0]\n"
+         "  Shape \"trianglemesh\" \"point3 P\" [" + v(c - h, c - h) + v(c + h, c - h) + v(c + h, c + h) + v(c - h, c + h) +
+         "]\n    \"integer indices\" [0 1 2 0 2 3]\nAttributeEnd\n"
+         "Material \"dielectric\" \"float eta\" [1.5]\n"
+         "Shape \"trianglemesh\" \"point3 P\" [-4 -4 4  4 -4 4  4 4 -4  -4 4 -4] \"integer indices\" [0 1 2 0 2 3]\n";
+}
+
+TEST(CameraSideSupersampling, ASmallLightsReflectionInGlassIsFoundByTheDeltaProbe) {
+  TempDir dir;
+  const double c = std::sqrt(0.5), eta = 1.5, sin_t = std::sqrt(0.5) / eta;
+  const double cos_t = std::sqrt(1 - sin_t * sin_t);
+  const double rs = (c - eta * cos_t) / (c + eta * cos_t), rp = (eta * c - cos_t) / (eta * c + cos_t);
+  const double fresnel = 0.5 * (rs * rs + rp * rp);
+  const double expected = 1000 * fresnel * kSpeckSide * kSpeckSide / (kSpeckPixel * kSpeckPixel);
+  const std::string path = dir.Write("glass-speck.pbrt", GlassSpeckScene());
+  double sum = 0;
+  for (uint64_t seed = 1; seed <= 4; ++seed) {
+    RenderSettings s;
+    s.method = "brute";
+    s.lights = 10;
+    s.seed = seed;
+    s.params = {"camera_paths=2048"};
+    const RenderOutput out = RenderScene(path, s);
+    for (const RGB& p : out.image.pixels) sum += double(p.g) / 4;
+    // The image and the pixels around it, and nothing else; each with more than camera_paths.
+    EXPECT_EQ(out.stats["receivers"]["camera_active_pixels"], 9u) << "seed " << seed;
+    EXPECT_GT(out.stats["receivers"]["camera_paths"], 9u * 4 * 2048) << "seed " << seed;
+  }
+  EXPECT_NEAR(sum, expected, 0.25 * expected);
+}
+
 // Simulate only what the scene calls for: a camera that can see no emitter (a point light over
 // a diffuse plane) gets no pilot and no camera paths, and the image is the same bits as with
 // the option off.
