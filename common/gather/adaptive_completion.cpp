@@ -48,8 +48,11 @@
 //     cornell-box evaluate 60% of its elements). A VRL's distance is the segment's (it is near
 //     wherever it passes close, not only at its start). Scenes without media are unchanged. The
 //     price: near columns are most of the evaluated elements, and their number grows linearly
-//     with the lights; docs/methods/adaptive-completion.md has the measurements, and the two
-//     cheaper splits measured and rejected.
+//     with the lights; docs/methods/adaptive-completion.md has the measurements, and the
+//     cheaper splits measured and rejected. near_samples = K > 0 samples them instead: each row
+//     draws K near lights by systematic sampling ∝ NearBound (power, distance, phase functions)
+//     and adds A_ij / (K q_ij) per draw, unbiased, with K entries per row whatever the number of
+//     near lights; it trades the near columns' exactness for noise (measured in the same doc).
 //
 // Exact limit: with rho=1 (Ω = every row), sigma=0 (a column that loses anything on Ω is sampled
 // fully) and beta=0 (every node refined to ≤ K lights, each evaluated once), every light's column
@@ -57,15 +60,18 @@
 // brute force's up to rounding (tests/unit/test_adaptive_completion.cpp).
 //
 // Parameters (--param): columns (K, 10), rho (0.1), sigma (0.005), beta (0.01), omega_per_basis
-// (2; see 1b), rank_tolerance (0.1; see 1d), near_distance (0.1; 0 turns it off; see 5). Randomness: Ω from (seed, stage, task, kRowSample,
-// draw number), a node's columns from (seed, stage, task, kColumnSample, node index); the slice
+// (2; see 1b), rank_tolerance (0.1; see 1d), near_distance (0.1; 0 turns it off; see 5),
+// near_samples (0: near columns exact; see 5). Randomness: Ω from (seed, stage, task, kRowSample,
+// draw number), a node's columns from (seed, stage, task, kColumnSample, node index), a row's near
+// draws from (seed, stage, task, kNearSample, row); the slice
 // is processed in one deterministic order and entries are evaluated in fixed chunks, so the bits
 // do not depend on threads or on which worker runs the slice.
 // Stats (summed over slices): columns_full (sampled on every row), columns_dropped (of those, not
 // added to U: dependent to drop tolerance), columns_completed (from Ω), basis_size, nodes_split,
 // cut_nodes, omega_redraws, speculative_entries (entries evaluated on an Ω redrawn before they
 // were used), negative_channels, observed_residual (per slice, Σ‖l_Ω − U_Ω e‖₁ / Σ‖l_Ω‖₁ over
-// the completed columns), near_columns (near lights' columns evaluated on every row, see 5).
+// the completed columns), near_columns (near lights, summed over slices, see 5), near_entries
+// (their entries drawn per row, with near_samples).
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
@@ -90,6 +96,7 @@ struct AdaptiveCompletionSettings {
   double omega_per_basis = 2;   // |Ω| ≥ this · k rows (deviation 1b)
   double rank_tolerance = 0.1;  // of U_Ω, relative to its largest pivot (see 1d)
   double near_distance = 0.1;   // near lights: within this × the slice's diagonal (see 5)
+  int near_samples = 0;         // near lights sampled per row (0: every near column exact; see 5)
 };
 
 // Entries per parallel evaluation chunk (several of Embree's 256-ray batches).
@@ -123,6 +130,104 @@ void AddScaled(Eigen::VectorXd* acc, const Eigen::VectorXd& v, double scale) {
     acc->tail(v.size() - old).setZero();
   }
   acc->head(v.size()) += scale * v;
+}
+
+// Squared distance between the segments a + s·da, s ∈ [0, la] and b + t·db, t ∈ [0, lb] (unit
+// directions; a length of 0 is a point): the closest pair of the two lines, each parameter
+// clamped to its segment and the other re-projected (exact for segments).
+float SegmentDistance2(Vec3 a, Vec3 da, float la, Vec3 b, Vec3 db, float lb) {
+  const Vec3 r = a - b;
+  const float e = Dot(da, db), f = Dot(da, r), g = Dot(db, r);
+  const float denom = 1.f - e * e;  // |da × db|² for unit directions
+  float s = 0;
+  if (la > 0 && lb > 0 && denom > 1e-6f) s = std::clamp((e * g - f) / denom, 0.f, la);
+  float t = lb > 0 ? g + e * s : 0.f;  // closest t to a + s·da
+  if (t < 0 || t > lb) {
+    t = std::clamp(t, 0.f, lb);
+    s = la > 0 ? std::clamp(Dot(b + db * t - a, da), 0.f, la) : 0.f;
+  } else if (la > 0 && !(lb > 0 && denom > 1e-6f)) {
+    s = std::clamp(Dot(b + db * t - a, da), 0.f, la);
+  }
+  return LengthSquared(a + da * s - (b + db * t));
+}
+
+
+// Squared distance between a row's receiver (a shading point, or an eye segment) and a light
+// (a point, or a VRL's segment).
+float RowLightDistance2(const LightingMatrix& matrix, uint32_t row, const VirtualLight& L) {
+  const float vrl_length = L.IsRay() ? L.length : 0.f;
+  const size_t npoints = matrix.point_rows();
+  if (row < npoints) return SegmentDistance2(L.p, L.n, vrl_length, matrix.receivers().points[row].p, L.n, 0.f);
+  const EyeSegment& seg = matrix.receivers().segments[row - npoints];
+  return SegmentDistance2(L.p, L.n, vrl_length, seg.o, seg.d, seg.length);
+}
+
+// The sampling weight of a near light for a row (near_samples, see 5): the light's power times
+// an unoccluded estimate of its geometry and phase functions, at the receiver's point closest to
+// it x (the shading point, or on an eye segment). A point light at distance d: 1/d² (d floored
+// at the clamp distance). A VRL p + t·n, t ∈ [0, ℓ], whose closest point to x is at t₀ and
+// distance d: its power per length times ∫₀^ℓ ρ(t) dt / (d² + (t − t₀)²), ρ the product of the
+// VRL's phase function and, for an eye segment, the segment's (towards the camera). With
+// t = t₀ + d tan φ the integral is (1/d) ∫ ρ dφ over [atan(−t₀/d), atan((ℓ − t₀)/d)] (the whole
+// angle the VRL subtends, so a long VRL passing close outweighs a short one), estimated at four
+// midpoints in φ.
+double NearBound(const LightingMatrix& matrix, uint32_t row, const VirtualLight& L, float floor_distance) {
+  const double power = std::max(0.0, double(L.power.Luminance()));
+  if (!(power > 0)) return 0;
+  const size_t npoints = matrix.point_rows();
+  Vec3 x;
+  if (row < npoints) {
+    x = matrix.receivers().points[row].p;
+  } else {
+    // The point of the eye segment closest to the light: among the segment's ends and the
+    // line-line optimum (the point's projection, for a point light), each with its closest point
+    // on the VRL.
+    const EyeSegment& seg = matrix.receivers().segments[row - npoints];
+    const float vrl_length = L.IsRay() ? L.length : 0.f;
+    float best = kInfinity, best_t = 0;
+    const Vec3 r0 = seg.o - L.p;
+    const float e = Dot(seg.d, L.n), f = Dot(seg.d, r0), g = Dot(L.n, r0);
+    const float denom = 1.f - e * e;
+    float candidates[3] = {0.f, seg.length, vrl_length > 0 && denom > 1e-6f ? (e * g - f) / denom : -f};
+    for (float t : candidates) {
+      t = std::clamp(t, 0.f, seg.length);
+      const Vec3 p = seg.o + seg.d * t;
+      const float s = vrl_length > 0 ? std::clamp(Dot(p - L.p, L.n), 0.f, vrl_length) : 0.f;
+      const float d2 = LengthSquared(p - (L.p + L.n * s));
+      if (d2 < best) {
+        best = d2;
+        best_t = t;
+      }
+    }
+    x = seg.o + seg.d * best_t;
+  }
+  if (!L.IsRay() || !(L.length > 0)) {
+    const double d2 = std::max(double(LengthSquared(x - L.p)), double(floor_distance) * floor_distance);
+    return power / d2;
+  }
+  const double t0 = double(Dot(x - L.p, L.n));
+  const Vec3 to_x = x - (L.p + L.n * float(t0));
+  const double d = std::max(double(Length(to_x)), double(floor_distance));
+  const double l = double(L.length);
+  const double phi0 = std::atan((0 - t0) / d), phi1 = std::atan((l - t0) / d);
+  // The light travels from the VRL point at φ to x along cos φ·e − sin φ·n (e: the unit vector
+  // from the closest point to x): the VRL's phase function sees cos θ = −sin φ against n, an
+  // eye segment's that direction against −d, the way to the camera.
+  const Vec3 e = Length(to_x) > 0 ? to_x / Length(to_x) : Vec3{0, 0, 0};
+  const double g = double(L.g);
+  auto hg = [&](double c) { const double k = 1 + g * g - 2 * g * c; return (1 - g * g) / (4 * kPi * k * std::sqrt(k)); };
+  const bool segment = row >= npoints;
+  const Vec3 back = segment ? -matrix.receivers().segments[row - npoints].d : Vec3{0, 0, 0};
+  const double be = double(Dot(e, back)), bn = double(Dot(L.n, back));
+  double sum = 0;
+  constexpr int kN = 4;
+  for (int i = 0; i < kN; ++i) {
+    const double phi = phi0 + (phi1 - phi0) * (i + 0.5) / kN;
+    double w = hg(-std::sin(phi));
+    if (segment) w *= hg(std::cos(phi) * be - std::sin(phi) * bn);
+    sum += w;
+  }
+  return power / l * sum * (phi1 - phi0) / kN / d;
 }
 
 double& Channel(RGBAccum* a, int c) { return c == 0 ? a->r : (c == 1 ? a->g : a->b); }
@@ -196,6 +301,7 @@ class SliceSolver {
     }
 
     // Eq. 15: s = U·Σ e(node)
+    if (!sampled_near_.empty()) SampleNearLights(sampled_near_);
     const Eigen::VectorXd sums = completion_.Reconstruct(e_all_);
     out_->row_sums.assign(m_, RGBAccum());
     uint64_t negative = 0;
@@ -218,6 +324,7 @@ class SliceSolver {
     st["cut_nodes"] = double(in_cut);
     st["omega_redraws"] = double(omega_redraws_);
     st["near_columns"] = double(near_columns_);
+    st["near_entries"] = double(near_samples_);
     st["speculative_entries"] = double(speculative_entries_);
     st["negative_channels"] = double(negative);
     st["observed_residual"] =
@@ -236,6 +343,10 @@ class SliceSolver {
     for (uint32_t j = 0; j < near_.size(); ++j)
       if (near_[j]) lights.push_back(j);
     near_columns_ = lights.size();
+    if (s_.near_samples > 0 && lights.size() > size_t(s_.near_samples)) {
+      sampled_near_ = std::move(lights);  // after the traversal, on the final U (see Run)
+      return;
+    }
     // In groups of columns so that the entry lists stay small
     const size_t group = std::max<size_t>(1, (1u << 16) / std::max<uint32_t>(1, m_));
     for (size_t first = 0; first < lights.size(); first += group) {
@@ -254,6 +365,53 @@ class SliceSolver {
           if (std::isfinite(values[k][c])) near_sums_(3 * r + c) += double(values[k][c]);
       }
     }
+  }
+
+  // Near lights sampled per row instead (near_samples = K): row i draws K lights by systematic
+  // sampling of q_ij ∝ NearBound(i, j) and adds Σ A_ij · n_ij / (K q_ij), n_ij the draws of j:
+  // unbiased for Σ_j A_ij, and every light with K q_ij ≥ 1 is drawn at least once. The cost is
+  // K entries per row, whatever the number of near lights.
+  void SampleNearLights(const std::vector<uint32_t>& lights) {
+    const LightSet& set = matrix_.lights();
+    const size_t k = size_t(s_.near_samples);
+    const float floor_distance = std::max(matrix_.clamp_distance(), 1e-6f);
+    std::vector<std::vector<std::pair<uint32_t, double>>> draws(m_);
+    tbb::parallel_for(uint32_t(0), m_, [&](uint32_t r) {
+      std::vector<double> cdf(lights.size() + 1, 0.0);
+      for (size_t j = 0; j < lights.size(); ++j)
+        cdf[j + 1] = cdf[j] + NearBound(matrix_, task_.rows[r], set.lights[lights[j]], floor_distance);
+      const double total = cdf.back();
+      if (!(total > 0)) return;
+      Rng rng(SeedFor(RngStream::kNearSample, r));
+      const double u0 = rng.UniformDouble();
+      size_t j = 0;
+      for (size_t d = 0; d < k; ++d) {
+        const double target = (double(d) + u0) / double(k) * total;
+        while (j + 1 < lights.size() && !(cdf[j + 1] > target)) ++j;
+        const double p = (cdf[j + 1] - cdf[j]) / total;
+        if (!(p > 0)) continue;
+        const double w = 1.0 / (double(k) * p);
+        if (!draws[r].empty() && draws[r].back().first == lights[j])
+          draws[r].back().second += w;
+        else
+          draws[r].emplace_back(lights[j], w);
+      }
+    });
+    std::vector<uint32_t> rows, cols, local;
+    std::vector<double> weights;
+    for (uint32_t r = 0; r < m_; ++r)
+      for (const auto& [light, w] : draws[r]) {
+        rows.push_back(task_.rows[r]);
+        cols.push_back(light);
+        local.push_back(r);
+        weights.push_back(w);
+      }
+    std::vector<RGB> values;
+    EvaluateInChunks(matrix_, rows, cols, &values, &out_->counters);
+    for (size_t e = 0; e < values.size(); ++e)
+      for (int c = 0; c < 3; ++c)
+        if (std::isfinite(values[e][c])) near_sums_(3 * Eigen::Index(local[e]) + c) += weights[e] * double(values[e][c]);
+    near_samples_ = values.size();
   }
 
   // Ω: distinct uniform rows (Algorithm 2, DrawRowIndices), never fewer than omega_per_basis·k.
@@ -466,6 +624,8 @@ class SliceSolver {
   double cut_energy_ = 0;          // Σ_i (U e_all)_i
   Eigen::VectorXd near_sums_;      // 3m: the near lights' columns summed
   uint64_t near_columns_ = 0;
+  uint64_t near_samples_ = 0;  // entries evaluated for sampled near lights
+  std::vector<uint32_t> sampled_near_;  // near lights sampled per row (near_samples)
 
   uint64_t columns_full_ = 0, columns_dropped_ = 0, columns_completed_ = 0;
   uint64_t nodes_split_ = 0, omega_redraws_ = 0, speculative_entries_ = 0;
@@ -479,25 +639,6 @@ class AdaptiveCompletionGather final : public GatherMethod {
 
   // Lights closer than near_distance × the slice's bounding-box diagonal to one of its receivers
   // (a shading point, or the nearest point of an eye segment). Directional lights are never near.
-  // Squared distance between the segments a + s·da, s ∈ [0, la] and b + t·db, t ∈ [0, lb] (unit
-  // directions; a length of 0 is a point): the closest pair of the two lines, each parameter
-  // clamped to its segment and the other re-projected (exact for segments).
-  static float SegmentDistance2(Vec3 a, Vec3 da, float la, Vec3 b, Vec3 db, float lb) {
-    const Vec3 r = a - b;
-    const float e = Dot(da, db), f = Dot(da, r), g = Dot(db, r);
-    const float denom = 1.f - e * e;  // |da × db|² for unit directions
-    float s = 0;
-    if (la > 0 && lb > 0 && denom > 1e-6f) s = std::clamp((e * g - f) / denom, 0.f, la);
-    float t = lb > 0 ? g + e * s : 0.f;  // closest t to a + s·da
-    if (t < 0 || t > lb) {
-      t = std::clamp(t, 0.f, lb);
-      s = la > 0 ? std::clamp(Dot(b + db * t - a, da), 0.f, la) : 0.f;
-    } else if (la > 0 && !(lb > 0 && denom > 1e-6f)) {
-      s = std::clamp(Dot(b + db * t - a, da), 0.f, la);
-    }
-    return LengthSquared(a + da * s - (b + db * t));
-  }
-
   std::vector<uint8_t> NearLights(const LightingMatrix& matrix, const SubMatrixTask& task) const {
     const LightSet& lights = matrix.lights();
     std::vector<uint8_t> near(lights.size(), 0);
@@ -529,14 +670,7 @@ class AdaptiveCompletionGather final : public GatherMethod {
       const Vec3 outside = Max(Max(b.lo - hi, lo - b.hi), Vec3(0, 0, 0));
       if (LengthSquared(outside) > margin2) return;
       for (uint32_t r : task.rows) {
-        float d2;
-        if (r < npoints) {
-          d2 = SegmentDistance2(L.p, L.n, vrl_length, receivers.points[r].p, L.n, 0.f);
-        } else {
-          const EyeSegment& seg = receivers.segments[r - npoints];
-          d2 = SegmentDistance2(L.p, L.n, vrl_length, seg.o, seg.d, seg.length);
-        }
-        if (d2 <= margin2) {
+        if (RowLightDistance2(matrix, r, L) <= margin2) {
           near[j] = 1;
           return;
         }
@@ -581,6 +715,7 @@ std::unique_ptr<GatherMethod> CreateAdaptiveCompletionGather(const OptionMap& pa
   s.omega_per_basis = params.GetDouble("omega_per_basis", 2.0, 0.0, 1e6);
   s.rank_tolerance = params.GetDouble("rank_tolerance", 0.1, 0.0, 1.0);
   s.near_distance = params.GetDouble("near_distance", 0.1, 0.0, 1e6);
+  s.near_samples = int(params.GetInt("near_samples", 0, 0, 1 << 20));
   return std::make_unique<AdaptiveCompletionGather>(s);
 }
 

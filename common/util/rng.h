@@ -40,6 +40,7 @@ enum class RngStream : uint64_t {
   kCompensation = 11,  // the clamp compensation: one generator per (row, sample)
   kCausticPhoton = 12,  // caustic photon paths: one generator per path
   kCameraPilot = 13,  // camera-side pilot paths (receivers.cpp): one generator per pixel
+  kNearSample = 14,  // adaptive-completion: near lights sampled per row
 };
 
 // PCG32 (O'Neill 2014): small state, good statistics, cheap to seed per pixel / per path.

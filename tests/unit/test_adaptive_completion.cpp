@@ -160,6 +160,59 @@ TEST(AdaptiveCompletion, NearLightsKeepMediaAccurate) {
   EXPECT_GT(CompareImages(brute.image, without.image).rel_l1, 4 * m.rel_l1);
 }
 
+// Near lights sampled per row (near_samples = K) instead of summed exactly, with everything else
+// exact (ρ = 1, σ = 0, β = 0), so that the image differs from the exact near sum only by the
+// sampling: at most K entries per row, fewer elements, noise that falls with K, and no bias (each
+// row draws on its own stream, so the pixel differences are independent with mean zero: their
+// mean stays within four standard errors of 0; weights 20% too large fail it at K = 64 and 256).
+// A slice with at most K near lights sums them exactly: the same bits.
+TEST(AdaptiveCompletion, NearLightsSampledPerRowAreUnbiasedAndConverge) {
+  const std::string scene = testing::SharedScene("volumetric-caustic");
+  std::vector<std::string> common = kExact;
+  common.insert(common.end(), {"segment_rows_per_slice=100", "caustic_photons=0", "near_distance=0.3"});
+  const RenderOutput exact = Render(scene, "adaptive-completion", common, 600, 24);
+  ASSERT_GT(Stat(exact, "near_columns"), 100.0);
+  EXPECT_EQ(Stat(exact, "near_entries"), 0.0);
+  auto sampled = [&](int k) {
+    std::vector<std::string> params = common;
+    params.push_back("near_samples=" + std::to_string(k));
+    return Render(scene, "adaptive-completion", params, 600, 24);
+  };
+  const double rows = exact.stats["receivers"]["segments"].get<double>() +
+                      exact.stats["receivers"]["points"].get<double>();
+  double previous_error = kInfinity;
+  RenderOutput sampled64;
+  for (const int k : {8, 64, 256}) {
+    const RenderOutput out = sampled(k);
+    if (k == 64) sampled64 = out;
+    EXPECT_GT(Stat(out, "near_entries"), 0.0);
+    EXPECT_LE(Stat(out, "near_entries"), k * rows);
+    EXPECT_LT(Elements(out), Elements(exact));
+    const double error = CompareImages(exact.image, out.image).rel_l1;
+    EXPECT_GT(error, 0.0);
+    EXPECT_LT(error, 0.7 * previous_error) << "K " << k;
+    previous_error = error;
+    double sum = 0, sum2 = 0, reference = 0;
+    const size_t n = exact.image.pixels.size();
+    for (size_t i = 0; i < n; ++i) {
+      const double d = double(out.image.pixels[i].Luminance()) - double(exact.image.pixels[i].Luminance());
+      sum += d;
+      sum2 += d * d;
+      reference += double(exact.image.pixels[i].Luminance());
+    }
+    const double mean = sum / double(n), stderr_mean = std::sqrt((sum2 / double(n) - mean * mean) / double(n - 1));
+    EXPECT_GT(stderr_mean, 0.0);
+    EXPECT_LT(std::abs(mean), 4 * stderr_mean) << "K " << k << ": mean " << mean << ", image mean " << reference / double(n);
+  }
+  {  // the draws do not depend on the threads
+    tbb::global_control one(tbb::global_control::max_allowed_parallelism, 1);
+    EXPECT_TRUE(testing::SameBits(sampled(64).image, sampled64.image));
+  }
+  const RenderOutput all = sampled(1 << 20);  // more than any slice's near lights
+  EXPECT_EQ(Stat(all, "near_entries"), 0.0);
+  EXPECT_TRUE(testing::SameBits(exact.image, all.image));
+}
+
 // The defaults: an approximation (not a copy), at a fraction of the cost, that completes most
 // columns from Ω; a tighter energy test samples more columns fully and errs less.
 // Measured at these settings (seed 3, one 1003-row slice): rel_l2 ≈ 0.015, rel_l1 ≈ 0.046 with
@@ -244,12 +297,13 @@ TEST(AdaptiveCompletion, SameBitsWhateverTheTaskOrder) {
 
 TEST(AdaptiveCompletion, InvalidParametersAreRejected) {
   for (const char* bad : {"rho=0", "rho=1.5", "columns=0", "sigma=-1", "beta=-0.1",
-                          "omega_per_basis=-1", "rank_tolerance=2", "near_distance=-1"}) {
+                          "omega_per_basis=-1", "rank_tolerance=2", "near_distance=-1",
+                          "near_samples=-1"}) {
     OptionMap params = OptionMap::Parse({bad});
     EXPECT_THROW(CreateGatherMethod("adaptive-completion", params), OptionError) << bad;
   }
   OptionMap ok = OptionMap::Parse({"rho=0.2", "columns=4", "sigma=0.01", "beta=0.02",
-                                   "omega_per_basis=1.5", "rank_tolerance=0.01"});
+                                   "omega_per_basis=1.5", "rank_tolerance=0.01", "near_samples=64"});
   auto method = CreateGatherMethod("adaptive-completion", ok);
   EXPECT_EQ(method->name(), "adaptive-completion");
   EXPECT_TRUE(method->needs_light_tree());
