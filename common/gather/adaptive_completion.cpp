@@ -202,7 +202,7 @@ double NearBound(const LightingMatrix& matrix, uint32_t row, const VirtualLight&
     x = seg.o + seg.d * best_t;
   }
   if (!L.IsRay() || !(L.length > 0)) {
-    const double d2 = std::max(double(LengthSquared(x - L.p)), double(floor_distance) * floor_distance);
+    const double d2 = std::max(double(LengthSquared(x - L.p)), double(floor_distance) * double(floor_distance));
     return power / d2;
   }
   const double t0 = double(Dot(x - L.p, L.n));
@@ -215,7 +215,7 @@ double NearBound(const LightingMatrix& matrix, uint32_t row, const VirtualLight&
   // eye segment's that direction against −d, the way to the camera.
   const Vec3 e = Length(to_x) > 0 ? to_x / Length(to_x) : Vec3{0, 0, 0};
   const double g = double(L.g);
-  auto hg = [&](double c) { const double k = 1 + g * g - 2 * g * c; return (1 - g * g) / (4 * kPi * k * std::sqrt(k)); };
+  auto hg = [&](double c) { const double k = 1 + g * g - 2 * g * c; return (1 - g * g) / (4 * double(kPi) * k * std::sqrt(k)); };
   const bool segment = row >= npoints;
   const Vec3 back = segment ? -matrix.receivers().segments[row - npoints].d : Vec3{0, 0, 0};
   const double be = double(Dot(e, back)), bn = double(Dot(L.n, back));
