@@ -132,10 +132,10 @@ void AddScaled(Eigen::VectorXd* acc, const Eigen::VectorXd& v, double scale) {
   acc->head(v.size()) += scale * v;
 }
 
-// Squared distance between the segments a + s·da, s ∈ [0, la] and b + t·db, t ∈ [0, lb] (unit
+// The closest points a + s·da, s ∈ [0, la] and b + t·db, t ∈ [0, lb] of two segments (unit
 // directions; a length of 0 is a point): the closest pair of the two lines, each parameter
-// clamped to its segment and the other re-projected (exact for segments).
-float SegmentDistance2(Vec3 a, Vec3 da, float la, Vec3 b, Vec3 db, float lb) {
+// clamped to its segment and the other re-projected (exact for segments). Returns (s, t).
+std::pair<float, float> SegmentClosest(Vec3 a, Vec3 da, float la, Vec3 b, Vec3 db, float lb) {
   const Vec3 r = a - b;
   const float e = Dot(da, db), f = Dot(da, r), g = Dot(db, r);
   const float denom = 1.f - e * e;  // |da × db|² for unit directions
@@ -148,9 +148,13 @@ float SegmentDistance2(Vec3 a, Vec3 da, float la, Vec3 b, Vec3 db, float lb) {
   } else if (la > 0 && !(lb > 0 && denom > 1e-6f)) {
     s = std::clamp(Dot(b + db * t - a, da), 0.f, la);
   }
-  return LengthSquared(a + da * s - (b + db * t));
+  return {s, t};
 }
 
+float SegmentDistance2(Vec3 a, Vec3 da, float la, Vec3 b, Vec3 db, float lb) {
+  const auto [s, t] = SegmentClosest(a, da, la, b, db, lb);
+  return LengthSquared(a + da * s - (b + db * t));
+}
 
 // Squared distance between a row's receiver (a shading point, or an eye segment) and a light
 // (a point, or a VRL's segment).
@@ -179,27 +183,8 @@ double NearBound(const LightingMatrix& matrix, uint32_t row, const VirtualLight&
   if (row < npoints) {
     x = matrix.receivers().points[row].p;
   } else {
-    // The point of the eye segment closest to the light: among the segment's ends and the
-    // line-line optimum (the point's projection, for a point light), each with its closest point
-    // on the VRL.
     const EyeSegment& seg = matrix.receivers().segments[row - npoints];
-    const float vrl_length = L.IsRay() ? L.length : 0.f;
-    float best = kInfinity, best_t = 0;
-    const Vec3 r0 = seg.o - L.p;
-    const float e = Dot(seg.d, L.n), f = Dot(seg.d, r0), g = Dot(L.n, r0);
-    const float denom = 1.f - e * e;
-    float candidates[3] = {0.f, seg.length, vrl_length > 0 && denom > 1e-6f ? (e * g - f) / denom : -f};
-    for (float t : candidates) {
-      t = std::clamp(t, 0.f, seg.length);
-      const Vec3 p = seg.o + seg.d * t;
-      const float s = vrl_length > 0 ? std::clamp(Dot(p - L.p, L.n), 0.f, vrl_length) : 0.f;
-      const float d2 = LengthSquared(p - (L.p + L.n * s));
-      if (d2 < best) {
-        best = d2;
-        best_t = t;
-      }
-    }
-    x = seg.o + seg.d * best_t;
+    x = seg.o + seg.d * SegmentClosest(L.p, L.n, L.IsRay() ? L.length : 0.f, seg.o, seg.d, seg.length).second;
   }
   if (!L.IsRay() || !(L.length > 0)) {
     const double d2 = std::max(double(LengthSquared(x - L.p)), double(floor_distance) * double(floor_distance));
