@@ -22,7 +22,7 @@ namespace fs = std::filesystem;
 namespace {
 
 // Bump when the cached format or the meaning of the key changes.
-constexpr uint64_t kReferenceFormat = 5;  // 2: subsets include eye-segment rows; 3: clamp compensation; 4: caustics; 5: sharp lobes
+constexpr uint64_t kReferenceFormat = 6;  // 2: subsets include eye-segment rows; 3: clamp compensation; 4: caustics; 5: sharp lobes; 6: element bound
 // Files above this size (volume grids) are hashed by size and mtime, not content.
 constexpr uintmax_t kContentHashLimit = uintmax_t(64) << 20;
 // Stream id of the pixel-subset choice (outside RngStream's range: bench only).

@@ -460,7 +460,10 @@ nlohmann::json MakeStats(const Plan& plan, const RenderSettings& settings,
                 {"energy_lost_after_compensation",
                  denom > 0 ? (counters.clamp_lost - (plan.matrix->compensates() ? counters.clamp_compensated : 0.0)) / denom
                            : 0.0},
-                {"compensation_paths", counters.compensation_paths}};
+                {"compensation_paths", counters.compensation_paths},
+                {"bsdf_clamp", plan.matrix_options.bsdf_clamp},
+                {"bound_elements", counters.bound_elements},
+                {"bound_lost_fraction", denom > 0 ? counters.bound_lost / denom : 0.0}};
   // Caustics gathered from photons (caustic_photons.h): zero unless the scene has delta lobes
   // on light paths (or --param caustic_photons asks for them).
   // The sharp-lobe split (docs/rendering.md): its threshold and the materials it made sharp.

@@ -51,6 +51,7 @@ void PutCounters(ByteWriter& w, const MatrixCounters& c) {
   w.U64(c.transmittance_evals);
   w.F64(c.clamp_compensated); w.U64(c.compensation_paths);
   w.F64(c.caustic_gathered); w.U64(c.caustic_photons_used);
+  w.F64(c.bound_lost); w.U64(c.bound_elements);
 }
 MatrixCounters GetCounters(ByteReader& r) {
   MatrixCounters c;
@@ -58,6 +59,7 @@ MatrixCounters GetCounters(ByteReader& r) {
   c.transmittance_evals = r.U64();
   c.clamp_compensated = r.F64(); c.compensation_paths = r.U64();
   c.caustic_gathered = r.F64(); c.caustic_photons_used = r.U64();
+  c.bound_lost = r.F64(); c.bound_elements = r.U64();
   return c;
 }
 

@@ -62,13 +62,15 @@ RGB PathTracer::ShadowRay(Vec3 o, const LightSample& ls, int medium, Rng& rng,
 }
 
 RGB PathTracer::LightAtSurface(const SurfaceHit& hit, const Material& m, const Frame& frame,
-                               Vec3 wo_local, int medium, Rng& rng, PathCounters* counters) const {
+                               Vec3 wo_local, int medium, Rng& rng, PathCounters* counters,
+                               const FirstVertexWeight* first) const {
   const float u_pick = rng.Uniform();
   const Vec2 u{rng.Uniform(), rng.Uniform()};
   const std::optional<LightSample> ls = lights_.Sample(hit.p, u_pick, u);
   if (!ls) return RGB(0.f);
   const Vec3 wi_local = frame.ToLocal(ls->wi);
-  const RGB f = EvalBSDF(m, wo_local, wi_local, TransportMode::kRadiance) * std::abs(wi_local.z);
+  RGB f = EvalBSDF(m, wo_local, wi_local, TransportMode::kRadiance) * std::abs(wi_local.z);
+  if (first) f *= first->arrival(wo_local, wi_local);
   if (f.IsBlack()) return RGB(0.f);
   const int start = scene_.MediumAfter(hit, ls->wi, medium);
   const RGB tr = ShadowRay(OffsetRayOrigin(hit.p, hit.ng, ls->wi), *ls, start, rng, counters);
@@ -98,7 +100,8 @@ RGB PathTracer::Li(Ray ray, Rng& rng, PathCounters* counters) const {
   return Li(ray, scene_.camera_medium(), options_.max_depth, rng, counters);
 }
 
-RGB PathTracer::Li(Ray ray, int medium, int max_depth, Rng& rng, PathCounters* counters) const {
+RGB PathTracer::Li(Ray ray, int medium, int max_depth, Rng& rng, PathCounters* counters,
+                   const FirstVertexWeight* first) const {
   ++counters->paths;
   RGB L(0.f), beta(1.f);
   float eta_scale = 1.f;
@@ -120,6 +123,7 @@ RGB PathTracer::Li(Ray ray, int medium, int max_depth, Rng& rng, PathCounters* c
       beta *= fp.weight;
       if (beta.IsBlack() || !beta.IsFinite()) break;
       if (fp.scattered) {
+        if (first && depth == 0) beta *= first->other;
         if (depth++ >= max_depth) break;
         ++counters->vertices;
         passthrough = 0;
@@ -149,11 +153,14 @@ RGB PathTracer::Li(Ray ray, int medium, int max_depth, Rng& rng, PathCounters* c
       }
       const Vec3 wo = -ray.d;
       const Shape& shape = scene_.shapes()[hit.shape];
+      // The first vertex of a weighted path (FirstVertexWeight): the next surface that scatters.
+      const FirstVertexWeight* at_first = depth == 0 ? first : nullptr;
       if (shape.area_emitter >= 0) {
         const RGB Le = scene_.EmittedRadiance(hit, wo);
         if (!Le.IsBlack()) {
-          const float w = specular ? 1.f
-                                   : HitWeight(prev_pdf, lights_.PdfArea(uint32_t(shape.area_emitter), prev_p, hit));
+          float w = specular ? 1.f
+                             : HitWeight(prev_pdf, lights_.PdfArea(uint32_t(shape.area_emitter), prev_p, hit));
+          if (at_first) w *= at_first->emission;
           L += beta * Le * w;
         }
       }
@@ -172,13 +179,14 @@ RGB PathTracer::Li(Ray ray, int medium, int max_depth, Rng& rng, PathCounters* c
       const Frame frame(hit.ns);
       const Vec3 wo_local = frame.ToLocal(wo);
       if (use_lights && !IsPurelySpecular(flags))
-        L += beta * LightAtSurface(hit, m, frame, wo_local, medium, rng, counters);
+        L += beta * LightAtSurface(hit, m, frame, wo_local, medium, rng, counters, at_first);
       const float uc = rng.Uniform();
       const Vec2 u{rng.Uniform(), rng.Uniform()};
       const std::optional<BSDFSample> bs = SampleBSDF(m, wo_local, uc, u, TransportMode::kRadiance);
       if (!bs || !(bs->pdf > 0) || bs->f.IsBlack()) break;
       const Vec3 wi = frame.FromLocal(bs->wi);
       beta *= bs->f * (std::abs(bs->wi.z) / bs->pdf);
+      if (at_first) beta *= bs->IsSpecular() ? at_first->other : at_first->arrival(wo_local, bs->wi);
       if (bs->flags & kBxDFTransmission) eta_scale *= bs->eta * bs->eta;
       specular = bs->IsSpecular();
       prev_p = hit.p;

@@ -20,6 +20,7 @@
 #include <embree3/rtcore.h>
 
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 #include "common/lights/emitters.h"
@@ -52,6 +53,17 @@ struct PathCounters {
   }
 };
 
+// Weights on what a path gathers at its first scattering vertex, by where the light arrives
+// from: the clamp compensation (clamp_compensation.cpp) traces, from a receiver, only the share
+// of each first-vertex direction that the element bound removed. The first surface's emission is
+// weighted by `emission`, light arriving there along a non-delta direction wi (local shading
+// frame, wo towards the path's origin) by arrival(wo, wi), and everything else (delta lobes, a
+// first vertex in a medium) by `other`.
+struct FirstVertexWeight {
+  float emission = 1, other = 1;
+  std::function<float(Vec3 wo, Vec3 wi)> arrival;
+};
+
 class PathTracer {
  public:
   PathTracer(const Scene& scene, const PathTracerOptions& options);
@@ -60,7 +72,8 @@ class PathTracer {
   RGB Li(Ray ray, Rng& rng, PathCounters* counters) const;
   // Radiance arriving at ray.o along -ray.d, for a ray that starts in `medium` and may scatter at
   // most `max_depth` times (the clamp compensation traces from a receiver with its remaining depth).
-  RGB Li(Ray ray, int medium, int max_depth, Rng& rng, PathCounters* counters) const;
+  RGB Li(Ray ray, int medium, int max_depth, Rng& rng, PathCounters* counters,
+         const FirstVertexWeight* first = nullptr) const;
 
   // Appends every ray traced from now on (closest-hit rays, shadow rays as handed to Embree) to
   // these vectors (nullptr: stop): the micro-benchmark replays them through Embree alone.
@@ -72,8 +85,10 @@ class PathTracer {
 
  private:
   // Next-event estimation from a surface vertex (local BSDF frame) or a medium point.
+  // `first`: weight the sample by its direction (FirstVertexWeight::arrival).
   RGB LightAtSurface(const SurfaceHit& hit, const Material& m, const Frame& frame, Vec3 wo_local,
-                     int medium, Rng& rng, PathCounters* counters) const;
+                     int medium, Rng& rng, PathCounters* counters,
+                     const FirstVertexWeight* first = nullptr) const;
   RGB LightInMedium(Vec3 p, Vec3 d_in, int medium, Rng& rng, PathCounters* counters) const;
   // Transmittance × visibility of the shadow ray from o towards the sample (0 when occluded).
   RGB ShadowRay(Vec3 o, const LightSample& ls, int medium, Rng& rng, PathCounters* counters) const;

@@ -1,20 +1,54 @@
-// Path-traced compensation of the clamp (docs/rendering.md, "The clamp").
+// Path-traced compensation of the clamp and the element bound (docs/rendering.md, "The clamp").
 //
-// The clamped estimate replaces G = cos θ_x cos θ_y / d² by G · min(1, d²/c²), c the clamp
-// distance, so it misses (Kollig & Keller 2004)
-//   ΔL(x) = ∫_A f(x) L_o(y→x) G(x, y) V(x, y) (1 − d²/c²)₊ dA(y)
-//         = ∫_Ω f(x, ω) L_i(x, ω) |cos θ| (1 − d(ω)²/c²)₊ dω,
-// d(ω) the distance to the first opaque surface along ω. One estimate per sample: ω from the
-// receiver's BSDF (non-delta lobes: the matrix holds only those), the first surface y within c,
-// and L_i(x, ω) path traced (Engelhardt et al. 2012) with the receiver's remaining depth. Area
-// VPLs are clamped too, so L_i includes y's emission. Only the light within c is traced: the
-// directions that find nothing there cost one short ray.
+// The clamped estimate replaces G = cos θ_x cos θ_y / d² by G_c = G · min(1, d²/c²), c the clamp
+// distance, and the element bound then scales an element whose kernel K (f_x·f_y·G_c for a
+// surface VPL, f_x·G_c for an area VPL's emission, largest channel) exceeds its limit B down to
+// B. Each light path x ← y ← ω' therefore misses the share
+//   w(ω, ω') = (1 − d²/c²)₊ + min(1, d²/c²) · (1 − B/K(ω, ω'))₊
+// of its contribution (Kollig & Keller 2004's residual, for both bounds), and the compensation is
+//   ΔL(x) = ∫_Ω f(x, ω) |cos θ| ∫ w(ω, ω') dL_i(x, ω; ω'),
+// the light arriving at x along ω split by the direction ω' it reached y from. One estimate per
+// sample: ω from the receiver's BSDF (non-delta lobes: the matrix holds only those), y the first
+// opaque surface along ω, and L_i(x, ω) path traced (Engelhardt et al. 2012) with the receiver's
+// remaining depth, weighting what y gathers by w (PathTracer's FirstVertexWeight; light that
+// leaves y by a delta lobe, which no VPL carries, keeps only the geometric share). Where no
+// material can reach the bound (a Lambertian scene) only the surfaces within c are traced: the
+// directions that find nothing there cost one short ray. A sample whose y cannot reach the bound
+// (a Lambertian y whose best case stays below it) and lies beyond c costs one ray and no path.
 //
 // Rows in a medium are skipped: there the clamp also bounds medium VPLs and VRLs, whose residual
 // is not this surface integral.
 #include "common/matrix/lighting_matrix.h"
 
 namespace lightfarm {
+
+bool LightingMatrix::BoundWeight(const RowData& r, const Material& m, const BSDFSample& bs,
+                                 const SurfaceHit& hit, float d2, float w_clamp,
+                                 FirstVertexWeight* weight) const {
+  const Material& my = scene_.materials()[scene_.shapes()[hit.shape].material];
+  const Vec3 wi = r.frame.FromLocal(bs.wi);
+  // G_c without the receiver's BSDF, and the share of the true G it is (the samples measure G).
+  const float g = std::abs(bs.wi.z) * std::abs(Dot(hit.ns, wi)) / std::max(d2, clamp_distance2_);
+  const float kept = std::min(1.f, d2 / clamp_distance2_);
+  const RGB fx = EvalBSDF(m, r.wo_local, bs.wi, TransportMode::kRadiance);
+  const float area_kernel = fx.Max() * g;
+  const bool emits = scene_.shapes()[hit.shape].area_emitter >= 0 && area_kernel > bound_area_ * 1.001f;
+  // A Lambertian y reflects at most max(ρ)/π: below the limit there, nothing of y's was bound;
+  // a purely specular y holds no VPLs.
+  const bool reflects = my.type == MaterialType::kDiffuse
+                            ? area_kernel * my.reflectance.Max() * kInvPi > bound_surface_ * 1.001f
+                            : !IsPurelySpecular(MaterialFlags(my));
+  if (!emits && !reflects) return false;
+  weight->emission = w_clamp + (emits ? kept * (1.f - bound_area_ / area_kernel) : 0.f);
+  weight->other = w_clamp;
+  const float limit = bound_surface_;
+  weight->arrival = [&my, fx, g, kept, limit, w_clamp](Vec3 wo, Vec3 wi_y) {
+    // As the surface VPL at y evaluates it: arrival wi_y, leaving towards the receiver (wo).
+    const float kernel = (fx * EvalBSDF(my, wi_y, wo, TransportMode::kImportance)).Max() * g;
+    return kernel > limit * 1.001f ? w_clamp + kept * (1.f - limit / kernel) : w_clamp;
+  };
+  return true;
+}
 
 RGBAccum LightingMatrix::ClampCompensation(uint32_t row, MatrixCounters* counters) const {
   RGBAccum sum;
@@ -36,13 +70,18 @@ RGBAccum LightingMatrix::ClampCompensation(uint32_t row, MatrixCounters* counter
     // The offset grows with the coordinates' magnitude (far from the origin it can exceed c):
     // search c past the receiver itself, not past the offset origin.
     SurfaceHit hit;
-    if (!scene_.Intersect({o, wi, clamp_distance_ + Length(o - r.p)}, &hit, kMaskOpaque)) continue;
+    const float reach = bound_binds_ ? kInfinity : clamp_distance_ + Length(o - r.p);
+    if (!scene_.Intersect({o, wi, reach}, &hit, kMaskOpaque)) continue;
     const float d2 = LengthSquared(hit.p - r.p);
-    const float w = 1.f - d2 / clamp_distance2_;
-    if (!(w > 0)) continue;
+    const float w = std::max(0.f, 1.f - d2 / clamp_distance2_);
+    FirstVertexWeight bound_weight;
+    const bool bound = bound_binds_ && BoundWeight(r, m, *bs, hit, d2, w, &bound_weight);
+    if (!bound && !(w > 0)) continue;
     ++counters->compensation_paths;
-    const RGB Li = compensation_tracer_->Li({o, wi, kInfinity}, medium, r.light_depth_budget, rng, &pc);
-    const RGB c = r.throughput * bs->f * Li * (std::abs(bs->wi.z) * w / bs->pdf * inv_n);
+    const RGB Li = compensation_tracer_->Li({o, wi, kInfinity}, medium, r.light_depth_budget, rng, &pc,
+                                            bound ? &bound_weight : nullptr);
+    // With a bound weight, w is inside the traced estimate.
+    const RGB c = r.throughput * bs->f * Li * (std::abs(bs->wi.z) * (bound ? 1.f : w) / bs->pdf * inv_n);
     if (c.IsFinite()) sum.Add(c);
   }
   counters->clamp_compensated += 0.2126 * sum.r + 0.7152 * sum.g + 0.0722 * sum.b;

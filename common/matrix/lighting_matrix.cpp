@@ -181,6 +181,8 @@ void ReadMatrixParams(const OptionMap& params, uint64_t seed, MatrixOptions* opt
   options->segment_samples = int(params.GetInt("segment_samples", 4, 1, 64));
   // Path-traced compensation of the clamp, samples per surface receiver (clamp_compensation.cpp).
   options->compensation_samples = int(params.GetInt("clamp_compensation", 4, 0, 64));
+  // The element bound's scale (MatrixOptions::bsdf_clamp).
+  options->bsdf_clamp = float(params.GetDouble("bsdf_clamp", 1.0, 0.0, 1e6));
   options->seed = seed;
   // Caustic photons (caustic_gather.cpp): the scene decides the default (the matrix's constructor).
   options->caustic_photons = params.Has("caustic_photons") ? params.GetInt("caustic_photons", 0, 0, 1 << 26) : -1;
@@ -209,6 +211,22 @@ LightingMatrix::LightingMatrix(const Scene& scene, const ReceiverSet& receivers,
   max_depth_ = scene.hints().max_depth;
   compensation_samples_ = options.compensation_samples;
   seed_ = options.seed;
+  if (options.bsdf_clamp > 0 && clamp_distance2_ > 0) {
+    bound_area_ = options.bsdf_clamp * kInvPi / clamp_distance2_;
+    bound_surface_ = bound_area_ * kInvPi;
+  }
+  // A Lambertian pair (reflectances ≤ 1) never exceeds the bound at bsdf_clamp ≥ 1, so the
+  // fast path, which does not test it, stays exact; otherwise those elements take the general path.
+  const auto fast_within_bound = [&](const RGB& reflectance) {
+    return bound_surface_ == 0 || (options.bsdf_clamp >= 1 && reflectance.Max() <= 1);
+  };
+  // Whether the bound can bind anywhere: some non-Lambertian lobe, or Lambertian ones it reaches.
+  for (const Material& m : scene.materials()) {
+    if (bound_surface_ == 0) break;
+    const uint32_t flags = MaterialFlags(m);
+    if (IsPurelySpecular(flags)) continue;
+    if (m.type != MaterialType::kDiffuse || !fast_within_bound(m.reflectance)) bound_binds_ = true;
+  }
   if (compensates()) {
     PathTracerOptions pt;
     pt.max_depth = scene.hints().max_depth;
@@ -239,7 +257,8 @@ LightingMatrix::LightingMatrix(const Scene& scene, const ReceiverSet& receivers,
     r.medium_in = sp.medium_in;
     const Material& m = scene.materials()[sp.material];
     RGB f = m.reflectance * kInvPi;  // EvalDiffuse's value on the lit side
-    r.diffuse = options.diffuse_fast_path && m.type == MaterialType::kDiffuse && !f.IsBlack();
+    r.diffuse = options.diffuse_fast_path && m.type == MaterialType::kDiffuse && !f.IsBlack() &&
+                fast_within_bound(m.reflectance);
     r.throughput_f = r.throughput * f;
     r.origin_front = OffsetRayOrigin(r.p, r.ng, r.ng);
     r.origin_back = OffsetRayOrigin(r.p, r.ng, -r.ng);
@@ -265,7 +284,7 @@ LightingMatrix::LightingMatrix(const Scene& scene, const ReceiverSet& receivers,
       d.surface = true;
       d.wi_z = light_frames_[j].wi_local.z;
       d.emission = L.power * (m.reflectance * kInvPi);  // as L.power * EvalDiffuse(...)
-      d.fast = options.diffuse_fast_path && m.type == MaterialType::kDiffuse;
+      d.fast = options.diffuse_fast_path && m.type == MaterialType::kDiffuse && fast_within_bound(m.reflectance);
     }
     a.px[j] = L.p.x; a.py[j] = L.p.y; a.pz[j] = L.p.z;
     a.nx[j] = L.n.x; a.ny[j] = L.n.y; a.nz[j] = L.n.z;
@@ -321,8 +340,8 @@ inline bool LightingMatrix::DiffuseElement(const RowData& row, const VirtualLigh
 // its shadow ray; false when it is zero. The general path of EvaluateBatched, inlined into it.
 [[gnu::always_inline]] inline bool LightingMatrix::GeneralElement(
     const RowData& row, const VirtualLight& L, uint32_t lj, const std::vector<Material>& materials,
-    RGB* value_out, float* scale_unclamped_out, Vec3* w_out, Vec3* o_out, Vec3* dir_out,
-    float* tfar_out) const {
+    RGB* value_out, float* scale_unclamped_out, float* bound_scale_out, Vec3* w_out, Vec3* o_out,
+    Vec3* dir_out, float* tfar_out) const {
   if (L.depth > row.light_depth_budget) return false;
   // Direction to the light and the light's side of the element.
   Vec3& w = *w_out;
@@ -341,6 +360,9 @@ inline bool LightingMatrix::DiffuseElement(const RowData& row, const VirtualLigh
   RGB f = EvalBSDF(materials[row.material], row.wo_local, wi_local, TransportMode::kRadiance);
   if (f.IsBlack()) return false;
   RGB intensity;
+  // The element bound's kernel without the geometry term (f_x·f_y·cos_x·cos_y for surface VPLs,
+  // f_x·cos_x·cos_y for area VPLs; largest channel) and its limit; 0: not bounded.
+  float kernel = 0, bound = 0;
   if (L.kind == VirtualLightKind::kSurfaceVPL) {
     // As LightIntensityTowards, with the light's frame computed once per light.
     const SurfaceLightFrame& lf = light_frames_[lj];
@@ -348,8 +370,14 @@ inline bool LightingMatrix::DiffuseElement(const RowData& row, const VirtualLigh
     if (Dot(L.ng, -w) * out_local.z <= 0) return false;
     RGB fl = EvalBSDF(materials[L.material], lf.wi_local, out_local, TransportMode::kImportance);
     intensity = L.power * fl * std::abs(out_local.z);
+    kernel = (f * fl).Max() * std::abs(out_local.z);
+    bound = bound_surface_;
   } else {
     intensity = LightIntensityTowards(L, w, materials);
+    if (L.kind == VirtualLightKind::kAreaVPL) {
+      kernel = f.Max() * std::abs(Dot(L.n, w));
+      bound = bound_area_;
+    }
   }
   if (intensity.IsBlack()) return false;
   float geometry = 1.f, scale_unclamped = 1.f;
@@ -363,6 +391,17 @@ inline bool LightingMatrix::DiffuseElement(const RowData& row, const VirtualLigh
   }
   RGB& value = *value_out;
   value = row.throughput * f * intensity * (std::abs(wi_local.z) * geometry);
+  // The element bound: scale the whole element (its colour kept) so its kernel meets the limit.
+  // Within 0.1% of the limit nothing changes, so float rounding on a white Lambertian pair at the
+  // clamp distance never binds (the fast path relies on it).
+  kernel *= std::abs(wi_local.z) * geometry;
+  *bound_scale_out = 1.f;
+  if (bound > 0 && kernel > bound * 1.001f) {
+    const float s = bound / kernel;
+    value *= s;
+    *bound_scale_out = 1.f / s;
+    scale_unclamped /= s;
+  }
   *scale_unclamped_out = scale_unclamped;
   if (value.IsBlack() || !value.IsFinite()) return false;
   // Shadow ray between offset end points; dir is left unnormalised with tfar just short of 1.
@@ -439,6 +478,7 @@ void LightingMatrix::EvaluateBatched(size_t n, EntryFn entry, SinkFn sink,
   alignas(16) std::array<RTCRay, kBatch> rays;
   std::array<RGB, kBatch> values;
   std::array<float, kBatch> unclamped;
+  std::array<float, kBatch> bounded;  // the element bound's factor (1: not bound)
   std::array<uint32_t, kBatch> slot;  // which entry of the batch a ray belongs to
   std::array<Vec3, kBatch> origins, dirs;  // shadow segments (for transmittance in media)
   std::array<float, kBatch> lengths;
@@ -453,8 +493,9 @@ void LightingMatrix::EvaluateBatched(size_t n, EntryFn entry, SinkFn sink,
     const bool batched = BatchDiffuseGeometry<kShape>(begin, count, entry, fixed, &receivers, &geo);
     // Queues the shadow ray of entry k (unshadowed `value`) for this batch's rtcOccluded1M.
     // keep = false writes the slot and leaves it to the next ray (no branch on the caller's test).
-    auto add_ray = [&](uint32_t ri, uint32_t lj, size_t k, RGB value, float scale_unclamped, Vec3 w,
-                       Vec3 o, Vec3 dir, float tfar, bool directional, bool keep) {
+    auto add_ray = [&](uint32_t ri, uint32_t lj, size_t k, RGB value, float scale_unclamped,
+                       float bound_scale, Vec3 w, Vec3 o, Vec3 dir, float tfar, bool directional,
+                       bool keep) {
       RTCRay& ray = rays[nrays];
       ray.org_x = o.x; ray.org_y = o.y; ray.org_z = o.z;
       ray.dir_x = dir.x; ray.dir_y = dir.y; ray.dir_z = dir.z;
@@ -477,6 +518,7 @@ void LightingMatrix::EvaluateBatched(size_t n, EntryFn entry, SinkFn sink,
       }
       values[nrays] = value;
       unclamped[nrays] = scale_unclamped;
+      bounded[nrays] = bound_scale;
       slot[nrays] = uint32_t(k);
       nrays += keep ? 1 : 0;
     };
@@ -512,7 +554,7 @@ void LightingMatrix::EvaluateBatched(size_t n, EntryFn entry, SinkFn sink,
         } else {
           keep = DiffuseElement(row, lights_.lights[lj], DL, &value, &scale_unclamped, &w, &o, &dir);
         }
-        add_ray(ri, lj, k, value, scale_unclamped, w, o, dir, 1.f - 1e-4f, false, keep);
+        add_ray(ri, lj, k, value, scale_unclamped, 1.f, w, o, dir, 1.f - 1e-4f, false, keep);
         continue;
       }
       const VirtualLight& L = lights_.lights[lj];
@@ -522,10 +564,11 @@ void LightingMatrix::EvaluateBatched(size_t n, EntryFn entry, SinkFn sink,
         continue;
       }
       RGB value;
-      float scale_unclamped, tfar;
+      float scale_unclamped, bound_scale, tfar;
       Vec3 w, o, dir;
-      if (!GeneralElement(row, L, lj, materials, &value, &scale_unclamped, &w, &o, &dir, &tfar)) continue;
-      add_ray(ri, lj, k, value, scale_unclamped, w, o, dir, tfar, L.IsDirectional(), true);
+      if (!GeneralElement(row, L, lj, materials, &value, &scale_unclamped, &bound_scale, &w, &o, &dir, &tfar))
+        continue;
+      add_ray(ri, lj, k, value, scale_unclamped, bound_scale, w, o, dir, tfar, L.IsDirectional(), true);
     }
     counters->elements += count;
     if (nrays == 0) continue;
@@ -549,6 +592,10 @@ void LightingMatrix::EvaluateBatched(size_t n, EntryFn entry, SinkFn sink,
         float lum = values[r].Luminance();
         counters->clamp_lost += double(lum) * double(unclamped[r] - 1.f);
         counters->clamp_kept += double(lum);
+        if (bounded[r] != 1.f) {
+          counters->bound_lost += double(lum) * double(bounded[r] - 1.f);
+          ++counters->bound_elements;
+        }
       }
     }
   }

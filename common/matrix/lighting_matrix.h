@@ -26,6 +26,12 @@ struct MatrixOptions {
   // Geometry-term clamp for virtual lights: 1/d² is replaced by 1/max(d², d_min²) with
   // d_min = clamp · (scene bounding-sphere radius). 0 disables it. Real point lights are exact.
   float clamp = 0.01f;
+  // The element bound (docs/rendering.md, "The element bound"): with the geometry clamp applied,
+  // an area-VPL element's f_x·G may not exceed bsdf_clamp/(π c²) and a surface-VPL element's
+  // f_x·f_y·G may not exceed bsdf_clamp/(π² c²), c the clamp distance: at 1 (the default) that
+  // is the brightest a Lambertian pair can be, so it binds only on glossy BSDF peaks. 0 turns it
+  // off. The clamp compensation recovers what it removes.
+  float bsdf_clamp = 1.f;
   // Samples per element of an eye-segment row (equi-angular sampling along the segment), and
   // per element of a VRL column (vrl_element.cpp).
   int segment_samples = 4;
@@ -69,6 +75,8 @@ struct MatrixCounters {
   uint64_t shadow_rays = 0;  // occlusion rays cast (elements with a non-zero unshadowed value)
   double clamp_lost = 0;     // luminance removed by the clamp on visible elements
   double clamp_kept = 0;     // luminance of visible clamped-light elements after the clamp
+  double bound_lost = 0;        // the part of clamp_lost the element bound (bsdf_clamp) removed
+  uint64_t bound_elements = 0;  // visible elements the element bound scaled down
   uint64_t transmittance_evals = 0;  // visible connections attenuated through media (walks)
   double clamp_compensated = 0;      // luminance the clamp compensation added back
   uint64_t compensation_paths = 0;   // compensation samples that found a surface within the clamp
@@ -84,6 +92,8 @@ struct MatrixCounters {
     shadow_rays += o.shadow_rays;
     clamp_lost += o.clamp_lost;
     clamp_kept += o.clamp_kept;
+    bound_lost += o.bound_lost;
+    bound_elements += o.bound_elements;
   }
 };
 
@@ -176,10 +186,16 @@ class LightingMatrix {
   bool DiffuseElement(const RowData& row, const VirtualLight& V, const DiffuseLight& L, RGB* value,
                       float* scale_unclamped, Vec3* w, Vec3* origin, Vec3* dir) const;
   // Any other surface element (every BSDF, every light kind but VRLs): its unshadowed value,
-  // the share the clamp removed, and its shadow ray; false when it is zero.
+  // the share the clamp and the element bound removed (scale_unclamped: both; bound_scale: the
+  // bound's alone), and its shadow ray; false when it is zero.
   bool GeneralElement(const RowData& row, const VirtualLight& L, uint32_t lj,
                       const std::vector<Material>& materials, RGB* value, float* scale_unclamped,
-                      Vec3* w, Vec3* origin, Vec3* dir, float* tfar) const;
+                      float* bound_scale, Vec3* w, Vec3* origin, Vec3* dir, float* tfar) const;
+  // The compensation's weights for a sample from receiver r (material m) along bs that found
+  // `hit` at squared distance d2 (clamp_compensation.cpp); false when the element bound cannot
+  // have removed anything of that path, so only the clamp's share w_clamp is missing.
+  bool BoundWeight(const RowData& r, const Material& m, const BSDFSample& bs, const SurfaceHit& hit,
+                   float d2, float w_clamp, FirstVertexWeight* weight) const;
   // One element of an eye-segment row (Huo 2016, Eq. 4: light → eye segment): the integral of
   // in-scattered light along the segment, by equi-angular sampling (Kulla & Fajardo 2012) for
   // point-like lights and transmittance-proportional sampling for directional ones.
@@ -220,6 +236,10 @@ class LightingMatrix {
   };
   DiffuseLightArrays light_arrays_;
   float clamp_distance_ = 0, clamp_distance2_ = 0;
+  // The element bound's limits (MatrixOptions::bsdf_clamp; 0: off) and whether any material of
+  // the scene can reach them (else the compensation traces only the geometry clamp's residual).
+  float bound_area_ = 0, bound_surface_ = 0;
+  bool bound_binds_ = false;
   int compensation_samples_ = 0;
   uint64_t seed_ = 0;
   std::unique_ptr<PathTracer> compensation_tracer_;

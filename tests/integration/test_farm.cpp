@@ -203,6 +203,29 @@ TEST(Farm, SharpLobesOnWorkerProcessesMatchTheDirectRenderBitForBit) {
   EXPECT_EQ(farm.stats["sharp"], direct.stats["sharp"]);
 }
 
+// The element bound and its traced compensation (a tight bsdf_clamp on a rough mirror whose
+// lobe the split leaves to the VPLs) on worker processes: the direct render's bits and counters.
+TEST(Farm, ElementBoundOnWorkerProcessesMatchesTheDirectRenderBitForBit) {
+  TempDir dir;
+  const std::string scene = dir.Write("glossy.pbrt", GlossyPlane(0.02f));
+  const std::vector<std::string> params = {"sharp_roughness=0", "bsdf_clamp=0.1", "caustic_photons=20000"};
+  std::vector<std::string> args = {"--method", "mrcs", "--resolution", "24x16", "--lights", "300", "--seed", "4"};
+  for (const std::string& p : params) args.insert(args.end(), {"--param", p});
+  RenderSettings s;
+  s.method = "mrcs";
+  s.width = 24;
+  s.height = 16;
+  s.lights = 300;
+  s.seed = 4;
+  s.params = params;
+  const RenderOutput direct = RenderScene(scene, s);
+  ASSERT_GT(direct.stats["clamp"]["bound_elements"].get<double>(), 0);
+
+  const FarmRender farm = SubmitToTwoWorkers(dir, scene, "bound", args);
+  EXPECT_TRUE(SameBits(farm.image, direct.image));
+  EXPECT_EQ(farm.stats["clamp"], direct.stats["clamp"]);
+}
+
 // The path tracer on worker processes: tiles × sample passes, the passes of a pixel summed in
 // task order, give the direct render's bits (the cloud: NanoVDB density, delta and ratio tracking).
 TEST(Farm, PathTracedMediaSceneOnWorkerProcessesMatchesTheDirectRenderBitForBit) {
