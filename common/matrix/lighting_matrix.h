@@ -73,13 +73,13 @@ void ReadMatrixParams(const OptionMap& params, uint64_t seed, MatrixOptions* opt
 struct MatrixCounters {
   uint64_t elements = 0;     // matrix elements evaluated
   uint64_t shadow_rays = 0;  // occlusion rays cast (elements with a non-zero unshadowed value)
-  double clamp_lost = 0;     // luminance removed by the clamp on visible elements
+  double clamp_lost = 0;     // luminance removed by the clamp and the bound on visible elements
   double clamp_kept = 0;     // luminance of visible clamped-light elements after the clamp
   double bound_lost = 0;        // the part of clamp_lost the element bound (bsdf_clamp) removed
   uint64_t bound_elements = 0;  // visible elements the element bound scaled down
   uint64_t transmittance_evals = 0;  // visible connections attenuated through media (walks)
   double clamp_compensated = 0;      // luminance the clamp compensation added back
-  uint64_t compensation_paths = 0;   // compensation samples that found a surface within the clamp
+  uint64_t compensation_paths = 0;   // compensation samples traced (a surface within the clamp, or a bound share)
   double caustic_gathered = 0;       // luminance the caustic photons added
   uint64_t caustic_photons_used = 0; // photons that contributed to a row's estimate
   void Add(const MatrixCounters& o) {
@@ -131,9 +131,10 @@ class LightingMatrix {
   void Column(uint32_t col, std::span<const uint32_t> rows, std::span<RGB> out,
               MatrixCounters* counters) const;
 
-  // The light the clamp removed from a surface row, estimated by path tracing (Kollig & Keller
-  // 2004's residual, traced as in Engelhardt et al. 2012; clamp_compensation.cpp); zero for
-  // eye-segment rows and when compensation is off. Deterministic in (job seed, row).
+  // The light the clamp and the element bound removed from a surface row, estimated by path
+  // tracing (Kollig & Keller 2004's residual, traced as in Engelhardt et al. 2012;
+  // clamp_compensation.cpp); zero for eye-segment rows and when compensation is off.
+  // Deterministic in (job seed, row).
   bool compensates() const { return compensation_samples_ > 0 && clamp_distance_ > 0; }
   RGBAccum ClampCompensation(uint32_t row, MatrixCounters* counters) const;
 
