@@ -11,7 +11,11 @@
 // sample: ω from the receiver's BSDF (non-delta lobes: the matrix holds only those), y the first
 // opaque surface along ω, and L_i(x, ω) path traced (Engelhardt et al. 2012) with the receiver's
 // remaining depth, weighting what y gathers by w (PathTracer's FirstVertexWeight; light that
-// leaves y by a delta lobe, which no VPL carries, keeps only the geometric share). Where no
+// leaves y by a delta lobe, which no VPL carries, keeps only the geometric share). The bound's
+// share of an emitter's own light (a glossy receiver seeing a small light) is also estimated by
+// one emitter sample per sample, MIS-combined (power heuristic) with the BSDF samples that hit
+// the emitter: found by BSDF sampling alone, a small light's share is mostly fireflies. (Scenes
+// with media keep BSDF sampling alone: the emitter sample has no transmittance.) Where no
 // material can reach the bound (a Lambertian scene) only the surfaces within c are traced: the
 // directions that find nothing there cost one short ray. A sample whose y cannot reach the bound
 // (a Lambertian y whose best case stays below it) and lies beyond c costs one ray and no path.
@@ -19,6 +23,12 @@
 // Rows in a medium are skipped: there the clamp also bounds medium VPLs and VRLs, whose residual
 // is not this surface integral.
 #include "common/matrix/lighting_matrix.h"
+
+#include <embree3/rtcore.h>
+
+#include <algorithm>
+
+#include "common/util/sampling.h"
 
 namespace lightfarm {
 
@@ -32,14 +42,20 @@ bool LightingMatrix::BoundWeight(const RowData& r, const Material& m, const BSDF
   const float kept = std::min(1.f, d2 / clamp_distance2_);
   const RGB fx = EvalBSDF(m, r.wo_local, bs.wi, TransportMode::kRadiance);
   const float area_kernel = fx.Max() * g;
-  const bool emits = scene_.shapes()[hit.shape].area_emitter >= 0 && area_kernel > bound_area_ * 1.001f;
+  const int emitter = scene_.shapes()[hit.shape].area_emitter;
+  const bool emits = emitter >= 0 && area_kernel > bound_area_ * 1.001f;
   // A Lambertian y reflects at most max(ρ)/π: below the limit there, nothing of y's was bound;
   // a purely specular y holds no VPLs.
   const bool reflects = my.type == MaterialType::kDiffuse
                             ? area_kernel * my.reflectance.Max() * kInvPi > bound_surface_ * 1.001f
                             : !IsPurelySpecular(MaterialFlags(my));
   if (!emits && !reflects) return false;
-  weight->emission = w_clamp + (emits ? kept * (1.f - bound_area_ / area_kernel) : 0.f);
+  // With emitter samples (BoundEmitterSample) the bound's share of the emission is MIS-weighted.
+  const float mis = emits && compensation_emitters_
+                        ? PowerHeuristic(PdfBSDF(m, r.wo_local, bs.wi, TransportMode::kRadiance),
+                                         compensation_emitters_->PdfArea(uint32_t(emitter), r.p, hit))
+                        : 1.f;
+  weight->emission = w_clamp + (emits ? kept * (1.f - bound_area_ / area_kernel) * mis : 0.f);
   weight->other = w_clamp;
   const float limit = bound_surface_;
   weight->arrival = [&my, fx, g, kept, limit, w_clamp](Vec3 wo, Vec3 wi_y) {
@@ -50,6 +66,42 @@ bool LightingMatrix::BoundWeight(const RowData& r, const Material& m, const BSDF
   return true;
 }
 
+RGB LightingMatrix::BoundEmitterSample(const RowData& r, const Material& m, Rng& rng,
+                                      PathCounters* counters) const {
+  const float u_pick = rng.Uniform();
+  const Vec2 u{rng.Uniform(), rng.Uniform()};
+  const std::optional<LightSample> ls = compensation_emitters_->Sample(r.p, u_pick, u);
+  if (!ls || !ls->area || !(ls->pdf > 0)) return RGB(0.f);
+  const Vec3 wi_local = r.frame.ToLocal(ls->wi);
+  // The directions the BSDF side skips are skipped here too (the wrong side, a medium).
+  if (Dot(r.ng, ls->wi) * wi_local.z <= 0) return RGB(0.f);
+  if ((Dot(ls->wi, r.ng) > 0 ? r.medium_out : r.medium_in) >= 0) return RGB(0.f);
+  const RGB fx = EvalBSDF(m, r.wo_local, wi_local, TransportMode::kRadiance);
+  const float d2 = LengthSquared(ls->p_light - r.p);
+  const float kernel = fx.Max() * std::abs(wi_local.z) * std::abs(Dot(ls->n_light, ls->wi)) /
+                       std::max(d2, clamp_distance2_);
+  if (!(kernel > bound_area_ * 1.001f)) return RGB(0.f);
+  const float share = std::min(1.f, d2 / clamp_distance2_) * (1.f - bound_area_ / kernel);
+  // Shadow ray between offset end points, as the path tracer's.
+  const Vec3 o = OffsetRayOrigin(r.p, r.ng, ls->wi);
+  const Vec3 dir = OffsetRayOrigin(ls->p_light, ls->n_light, -ls->wi) - o;
+  if (!IsFinite(o) || !IsFinite(dir)) return RGB(0.f);
+  RTCRay ray;
+  ray.org_x = o.x; ray.org_y = o.y; ray.org_z = o.z;
+  ray.dir_x = dir.x; ray.dir_y = dir.y; ray.dir_z = dir.z;
+  ray.tnear = 0.f;
+  ray.tfar = 1.f - 1e-4f;
+  ray.time = 0.f;
+  ray.mask = kMaskOpaque;
+  ray.id = 0;
+  ray.flags = 0;
+  scene_.Occluded(&ray, 1);
+  ++counters->shadow_rays;
+  if (!(ray.tfar >= 0.f)) return RGB(0.f);
+  const float mis = PowerHeuristic(ls->pdf, PdfBSDF(m, r.wo_local, wi_local, TransportMode::kRadiance));
+  return r.throughput * fx * ls->L * (std::abs(wi_local.z) * share * mis / ls->pdf);
+}
+
 RGBAccum LightingMatrix::ClampCompensation(uint32_t row, MatrixCounters* counters) const {
   RGBAccum sum;
   if (!compensates() || row >= rows_.size()) return sum;
@@ -58,6 +110,12 @@ RGBAccum LightingMatrix::ClampCompensation(uint32_t row, MatrixCounters* counter
   PathCounters pc;
   const float inv_n = 1.f / float(compensation_samples_);
   for (int s = 0; s < compensation_samples_; ++s) {
+    if (compensation_emitters_) {
+      // Its own generator: the BSDF side draws what it drew without emitter samples.
+      Rng nee(HashSeed({seed_, uint64_t(RngStream::kCompensation), row, uint64_t(s), 1}));
+      const RGB c = BoundEmitterSample(r, m, nee, &pc) * inv_n;
+      if (c.IsFinite()) sum.Add(c);
+    }
     Rng rng(HashSeed({seed_, uint64_t(RngStream::kCompensation), row, uint64_t(s)}));
     const float uc = rng.Uniform();
     const Vec2 u{rng.Uniform(), rng.Uniform()};

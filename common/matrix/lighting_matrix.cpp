@@ -231,6 +231,7 @@ LightingMatrix::LightingMatrix(const Scene& scene, const ReceiverSet& receivers,
     PathTracerOptions pt;
     pt.max_depth = scene.hints().max_depth;
     compensation_tracer_ = std::make_unique<PathTracer>(scene, pt);
+    if (bound_binds_ && !scene.has_media()) compensation_emitters_ = std::make_unique<EmitterSampler>(scene);
   }
   caustic_photons_ = options.caustic_photons >= 0 ? options.caustic_photons
                     : ComputeEffects(scene).caustics() ? kDefaultCausticPhotons

@@ -197,6 +197,9 @@ class LightingMatrix {
   // have removed anything of that path, so only the clamp's share w_clamp is missing.
   bool BoundWeight(const RowData& r, const Material& m, const BSDFSample& bs, const SurfaceHit& hit,
                    float d2, float w_clamp, FirstVertexWeight* weight) const;
+  // The bound's share of an area emitter's direct light at receiver r by one emitter sample,
+  // MIS-combined with the BSDF samples that find the emitter (clamp_compensation.cpp).
+  RGB BoundEmitterSample(const RowData& r, const Material& m, Rng& rng, PathCounters* counters) const;
   // One element of an eye-segment row (Huo 2016, Eq. 4: light → eye segment): the integral of
   // in-scattered light along the segment, by equi-angular sampling (Kulla & Fajardo 2012) for
   // point-like lights and transmittance-proportional sampling for directional ones.
@@ -244,6 +247,8 @@ class LightingMatrix {
   int compensation_samples_ = 0;
   uint64_t seed_ = 0;
   std::unique_ptr<PathTracer> compensation_tracer_;
+  // Emitter samples for the bound's share of direct light (bound_binds_, scenes without media).
+  std::unique_ptr<EmitterSampler> compensation_emitters_;
   long long caustic_photons_ = 0;
   int caustic_k_ = 64;
   float caustic_radius_ = 0, caustic_volume_radius_ = 0;
