@@ -14,6 +14,7 @@
 #include "common/farm/progressive.h"
 #include "common/gather/gather.h"
 #include "common/image/image.h"
+#include "common/lights/light_generation.h"
 #include "common/lights/virtual_light.h"
 #include "common/receivers/receivers.h"
 #include "common/scene/effects.h"
@@ -52,6 +53,9 @@ struct Plan {
   std::vector<SubMatrixTask> tasks;
   MatrixOptions matrix_options;
   double clamp = 0;
+  LightGenerationOptions light_options;  // how plan.lights were generated (BuildPlan only)
+  // Light sets of the clamp-loss probe (--param clamp_probe, clamp_probe.h) MakeStats runs; 0: none.
+  int clamp_probe = 0;
   GatherContext context() const { return GatherContext{*matrix, tree.get()}; }
 };
 

@@ -115,6 +115,9 @@ class LightingMatrix {
   const LightSet& lights() const { return lights_; }
   const ReceiverSet& receivers() const { return receivers_; }
   float clamp_distance() const { return clamp_distance_; }
+  // Whether the element bound can bind on some element (a non-Lambertian lobe, or a Lambertian
+  // one brighter than it allows); when not, only elements closer than the clamp distance lose light.
+  bool bound_binds() const { return bound_binds_; }
   // The scene, for methods that bound elements before evaluating them (lightcuts' material
   // bounds need the receivers' and surface VPLs' materials).
   const Scene& scene() const { return scene_; }

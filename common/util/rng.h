@@ -41,6 +41,7 @@ enum class RngStream : uint64_t {
   kCausticPhoton = 12,  // caustic photon paths: one generator per path
   kCameraPilot = 13,  // camera-side pilot paths (receivers.cpp): one generator per pixel
   kNearSample = 14,  // adaptive-completion: near lights sampled per row
+  kClampProbe = 15,  // the clamp-loss probe's light sets (clamp_probe.h): one per batch
 };
 
 // PCG32 (O'Neill 2014): small state, good statistics, cheap to seed per pixel / per path.
