@@ -30,35 +30,8 @@ float PathTracer::HitWeight(float pdf_scatter, float pdf_light) const {
 
 RGB PathTracer::ShadowRay(Vec3 o, const LightSample& ls, int medium, Rng& rng,
                           PathCounters* counters) const {
-  Vec3 target, dir;
-  float tfar;
-  if (ls.infinite_distance) {
-    dir = ls.wi;
-    tfar = kInfinity;
-  } else {
-    // End just short of the light, off its surface, so the emitter does not occlude itself.
-    target = ls.area ? OffsetRayOrigin(ls.p_light, ls.n_light, -ls.wi) : ls.p_light;
-    dir = target - o;
-    tfar = 1.f - 1e-4f;
-  }
-  if (!IsFinite(o) || !IsFinite(dir)) return RGB(0.f);
-  RTCRay ray;
-  ray.org_x = o.x; ray.org_y = o.y; ray.org_z = o.z;
-  ray.dir_x = dir.x; ray.dir_y = dir.y; ray.dir_z = dir.z;
-  ray.tnear = 0.f;
-  ray.tfar = tfar;
-  ray.time = 0.f;
-  ray.mask = kMaskOpaque;
-  ray.id = 0;
-  ray.flags = 0;
-  if (record_shadow_) record_shadow_->push_back(ray);
-  scene_.Occluded(&ray, 1);
   ++counters->shadow_rays;
-  if (!(ray.tfar >= 0.f)) return RGB(0.f);  // Embree sets tfar = -inf when occluded
-  if (!scene_.has_media()) return RGB(1.f);
-  // Ratio tracking through every medium the segment crosses (interfaces do not occlude).
-  return ls.infinite_distance ? scene_.TransmittanceAlong(o, ls.wi, kInfinity, medium, rng)
-                              : scene_.Transmittance(o, o + dir * tfar, medium, rng);
+  return LightSampleVisibility(scene_, o, ls, medium, rng, record_shadow_);
 }
 
 RGB PathTracer::LightAtSurface(const SurfaceHit& hit, const Material& m, const Frame& frame,

@@ -213,4 +213,29 @@ EmittedRay SampleEmittedRay(const Scene& scene, const EmitterRef& e, Vec3 center
   return out;
 }
 
+RGB LightSampleVisibility(const Scene& scene, Vec3 o, const LightSample& ls, int medium, Rng& rng,
+                          std::vector<RTCRay>* recorded) {
+  Vec3 dir = ls.wi;
+  float tfar = kInfinity;
+  if (!ls.infinite_distance) {
+    const Vec3 target = ls.area ? OffsetRayOrigin(ls.p_light, ls.n_light, -ls.wi) : ls.p_light;
+    dir = target - o;
+    tfar = 1.f - 1e-4f;
+  }
+  if (!IsFinite(o) || !IsFinite(dir)) return RGB(0.f);
+  RTCRay ray{};
+  ray.org_x = o.x; ray.org_y = o.y; ray.org_z = o.z;
+  ray.dir_x = dir.x; ray.dir_y = dir.y; ray.dir_z = dir.z;
+  ray.tnear = 0.f;
+  ray.tfar = tfar;
+  ray.mask = kMaskOpaque;
+  if (recorded) recorded->push_back(ray);
+  scene.Occluded(&ray, 1);
+  if (!(ray.tfar >= 0.f)) return RGB(0.f);  // Embree sets tfar = -inf when occluded
+  if (!scene.has_media()) return RGB(1.f);
+  // Ratio tracking through every medium the segment crosses (interfaces do not occlude).
+  return ls.infinite_distance ? scene.TransmittanceAlong(o, ls.wi, kInfinity, medium, rng)
+                              : scene.Transmittance(o, o + dir * tfar, medium, rng);
+}
+
 }  // namespace lightfarm

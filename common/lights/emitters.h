@@ -3,6 +3,8 @@
 // point in the scene (pbrt-v4's PowerLightSampler and Light::SampleLi / PDF_Li).
 #pragma once
 
+#include <embree3/rtcore.h>
+
 #include <cstdint>
 #include <optional>
 #include <vector>
@@ -63,6 +65,15 @@ struct LightSample {
   // density at the reference point (delta lights: the selection probability alone).
   float pdf = 0;
 };
+
+// The generalized visibility of light sample `ls` from `o` (a ray origin the caller offset off
+// its surface): 0 when an opaque surface lies between them, else the transmittance through the
+// media the segment crosses starting in `medium` (1 in a scene without media). The shadow ray
+// ends just short of an area light's point, offset off its surface, so the emitter does not
+// occlude itself; distant and infinite lights' is unbounded. `recorded` (benchmarks) receives
+// the ray as it was handed to Embree. One ray; the caller counts it.
+RGB LightSampleVisibility(const Scene& scene, Vec3 o, const LightSample& ls, int medium, Rng& rng,
+                          std::vector<RTCRay>* recorded = nullptr);
 
 class EmitterSampler {
  public:

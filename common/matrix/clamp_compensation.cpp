@@ -82,22 +82,9 @@ RGB LightingMatrix::BoundEmitterSample(const RowData& r, const Material& m, Rng&
                        std::max(d2, clamp_distance2_);
   if (!(kernel > bound_area_ * 1.001f)) return RGB(0.f);
   const float share = std::min(1.f, d2 / clamp_distance2_) * (1.f - bound_area_ / kernel);
-  // Shadow ray between offset end points, as the path tracer's.
-  const Vec3 o = OffsetRayOrigin(r.p, r.ng, ls->wi);
-  const Vec3 dir = OffsetRayOrigin(ls->p_light, ls->n_light, -ls->wi) - o;
-  if (!IsFinite(o) || !IsFinite(dir)) return RGB(0.f);
-  RTCRay ray;
-  ray.org_x = o.x; ray.org_y = o.y; ray.org_z = o.z;
-  ray.dir_x = dir.x; ray.dir_y = dir.y; ray.dir_z = dir.z;
-  ray.tnear = 0.f;
-  ray.tfar = 1.f - 1e-4f;
-  ray.time = 0.f;
-  ray.mask = kMaskOpaque;
-  ray.id = 0;
-  ray.flags = 0;
-  scene_.Occluded(&ray, 1);
+  // No media here (compensation_emitters_ exists only without them): visibility alone.
   ++counters->shadow_rays;
-  if (!(ray.tfar >= 0.f)) return RGB(0.f);
+  if (LightSampleVisibility(scene_, OffsetRayOrigin(r.p, r.ng, ls->wi), *ls, -1, rng).IsBlack()) return RGB(0.f);
   const float mis = PowerHeuristic(ls->pdf, PdfBSDF(m, r.wo_local, wi_local, TransportMode::kRadiance));
   return r.throughput * fx * ls->L * (std::abs(wi_local.z) * share * mis / ls->pdf);
 }

@@ -82,28 +82,9 @@ RGB SharpLobeEmitterSample(const Scene& scene, const EmitterSampler& lights, con
   const Vec3 wi_local = frame.ToLocal(ls->wi);
   const RGB f = EvalSharpLobe(m, wo_local, wi_local, TransportMode::kRadiance) * std::abs(wi_local.z);
   if (f.IsBlack()) return RGB(0.f);
-  const Vec3 o = OffsetRayOrigin(hit.p, hit.ng, ls->wi);
-  Vec3 dir = ls->wi;
-  float tfar = kInfinity;
-  if (!ls->infinite_distance) {
-    const Vec3 target = ls->area ? OffsetRayOrigin(ls->p_light, ls->n_light, -ls->wi) : ls->p_light;
-    dir = target - o;
-    tfar = 1.f - 1e-4f;
-  }
-  if (!IsFinite(o) || !IsFinite(dir)) return RGB(0.f);
-  RTCRay ray{};
-  ray.org_x = o.x; ray.org_y = o.y; ray.org_z = o.z;
-  ray.dir_x = dir.x; ray.dir_y = dir.y; ray.dir_z = dir.z;
-  ray.tfar = tfar;
-  ray.mask = kMaskOpaque;
-  scene.Occluded(&ray, 1);
-  if (!(ray.tfar >= 0.f)) return RGB(0.f);
-  RGB tr(1.f);
-  if (scene.has_media()) {
-    const int start = scene.MediumAfter(hit, ls->wi, medium);
-    tr = ls->infinite_distance ? scene.TransmittanceAlong(o, ls->wi, kInfinity, start, rng)
-                               : scene.Transmittance(o, o + dir * tfar, start, rng);
-  }
+  const int start = scene.has_media() ? scene.MediumAfter(hit, ls->wi, medium) : medium;
+  const RGB tr = LightSampleVisibility(scene, OffsetRayOrigin(hit.p, hit.ng, ls->wi), *ls, start, rng);
+  if (tr.IsBlack()) return RGB(0.f);
   const float w = ls->delta ? 1.f : PowerHeuristic(float(count) * ls->pdf, PdfSharpLobe(m, wo_local, wi_local) / p_lobe);
   return f * ls->L * tr * (w / (ls->pdf * p_lobe));
 }
