@@ -1,15 +1,15 @@
 // The clamp's expected loss, measured with independent light sets (docs/clamp.md).
 //
 // A render's own measure of what the clamp removed, Σ (1/d² − 1/max(d², c²)) over its elements
-// closer than c, is one draw of an estimator whose variance is unbounded: near a corner the
-// integrand grows as 1/d³ while the area it covers shrinks as d², so from one light set to the
-// next it swings by as much as it measures (cornell-box, 20000 lights: 0.08–0.28% over five
-// seeds). The compensation estimates the same expected loss by path tracing, with finite
-// variance. To tell whether it recovers that loss to 0.02% of the image, the expectation itself
-// has to be known to better than that: this probe averages the loss over many more light sets,
-// each generated exactly as the render's (same options, another seed), and evaluates only the
-// pairs the clamp touches (receiver and light closer than c), which are few, so a hundred light
-// sets cost about as much as one brute-force render's shadow rays of a small fraction of its pairs.
+// closer than c, is one draw of an estimator with a finite mean and no variance: near an edge a
+// pair closer than d turns up with probability ∝ d³ and then loses ∝ 1/d² (docs/rendering.md,
+// "What the compensation leaves"), so from one light set to the next it swings by as much as it
+// measures (cornell-box, 20000 lights: 0.08–0.28% over five seeds). The compensation estimates
+// the same expectation by path tracing, with finite variance. To tell whether it recovers that
+// loss to 0.02% of the image, the expectation has to be known better than one light set knows
+// it: this probe averages the loss over many more light sets, each generated exactly as the
+// render's (same options, another seed), and evaluates only the pairs the clamp touches
+// (receiver and light closer than c), which are few: a thousand light sets cost seconds.
 #pragma once
 
 #include <cstddef>
