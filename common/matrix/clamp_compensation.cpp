@@ -84,7 +84,8 @@ RGB LightingMatrix::BoundEmitterSample(const RowData& r, const Material& m, Rng&
   const float share = std::min(1.f, d2 / clamp_distance2_) * (1.f - bound_area_ / kernel);
   // No media here (compensation_emitters_ exists only without them): visibility alone.
   ++counters->shadow_rays;
-  if (LightSampleVisibility(scene_, OffsetRayOrigin(r.p, r.ng, ls->wi), *ls, -1, rng).IsBlack()) return RGB(0.f);
+  const Vec3 o = OffsetRayOrigin(r.p, r.ng, ls->wi);
+  if (LightSampleVisibility(scene_, o, *ls, -1, rng).IsBlack()) return RGB(0.f);
   const float mis = PowerHeuristic(ls->pdf, PdfBSDF(m, r.wo_local, wi_local, TransportMode::kRadiance));
   return r.throughput * fx * ls->L * (std::abs(wi_local.z) * share * mis / ls->pdf);
 }

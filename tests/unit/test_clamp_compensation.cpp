@@ -167,7 +167,6 @@ TEST(ClampCompensation, WhatItAddsIsTheFurnacesExpectedLossInClosedForm) {
     PhaseTimes times;
     const Plan plan = BuildPlan(path, s, &times);
     const GatherOutcome outcome = RunStagesLocally(plan, nullptr, &times);
-    const nlohmann::json stats = MakeStats(plan, s, outcome, 0, times, 0);
     const double c = plan.matrix->clamp_distance();
     double lost = 0;
     for (const ShadingPoint& sp : plan.receivers->points)
