@@ -101,7 +101,9 @@ if [ $media = 1 ]; then
   media_scenes=()
   for s in "${scenes[@]}"; do [ "$s" = volumetric-caustic ] || [[ "$s" == *cloud* ]] && media_scenes+=("$s"); done
   scenes=("${media_scenes[@]}")
-  media_args=(--methods adaptive-completion)
+  # Against the truth too: volumetric-caustic's reference.exr; the cloud's path-traced here,
+  # capped at 5 minutes (its stated noise is in the bench's section).
+  media_args=(--methods adaptive-completion --truth-max-seconds 300)
   # Near columns exact, then near lights sampled per row with K = 2048 and 512 draws
   # (docs/methods/adaptive-completion.md, "near lights sampled per row").
   media_args+=(--settings "${LIGHTFARM_MEDIA_SETTINGS:-rho=0.1,sigma=0.01;rho=0.1,sigma=0.01,near_samples=2048;rho=0.1,sigma=0.01,near_samples=512}")
