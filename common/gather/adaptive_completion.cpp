@@ -194,25 +194,41 @@ double NearBound(const LightingMatrix& matrix, uint32_t row, const VirtualLight&
   const Vec3 to_x = x - (L.p + L.n * float(t0));
   const double d = std::max(double(Length(to_x)), double(floor_distance));
   const double l = double(L.length);
-  const double phi0 = std::atan((0 - t0) / d), phi1 = std::atan((l - t0) / d);
+  // φ from φ0 = atan(a) to φ1 = atan(b); their difference and the midpoints' sines and cosines
+  // by the addition formulas (one atan2 and two sincos per pair instead of two atans and eight
+  // trigonometric calls: this runs for every row and near light).
+  const double a = -t0 / d, b = (l - t0) / d;
+  const double span = std::atan2(b - a, 1 + a * b);  // φ1 − φ0 ∈ [0, π]
   // The light travels from the VRL point at φ to x along cos φ·e − sin φ·n (e: the unit vector
   // from the closest point to x): the VRL's phase function sees cos θ = −sin φ against n, an
   // eye segment's that direction against −d, the way to the camera.
   const Vec3 e = Length(to_x) > 0 ? to_x / Length(to_x) : Vec3{0, 0, 0};
   const double g = double(L.g);
-  auto hg = [&](double c) { const double k = 1 + g * g - 2 * g * c; return (1 - g * g) / (4 * double(kPi) * k * std::sqrt(k)); };
+  auto hg = [g](double c) {
+    if (g == 0) return 1 / (4 * double(kPi));
+    const double k = 1 + g * g - 2 * g * c;
+    return (1 - g * g) / (4 * double(kPi) * k * std::sqrt(k));
+  };
   const bool segment = row >= npoints;
-  const Vec3 back = segment ? -matrix.receivers().segments[row - npoints].d : Vec3{0, 0, 0};
+  const EyeSegment* seg = segment ? &matrix.receivers().segments[row - npoints] : nullptr;
+  const Vec3 back = segment ? -seg->d : Vec3{0, 0, 0};
   const double be = double(Dot(e, back)), bn = double(Dot(L.n, back));
-  double sum = 0;
   constexpr int kN = 4;
+  const double step = span / kN;
+  const double c0 = 1 / std::sqrt(1 + a * a), s0 = a * c0;  // cos φ0, sin φ0
+  const double ch = std::cos(0.5 * step), sh = std::sin(0.5 * step);
+  const double cs = 1 - 2 * sh * sh, ss = 2 * sh * ch;  // cos, sin of the step
+  double sin_phi = s0 * ch + c0 * sh, cos_phi = c0 * ch - s0 * sh;  // the first midpoint
+  double sum = 0;
   for (int i = 0; i < kN; ++i) {
-    const double phi = phi0 + (phi1 - phi0) * (i + 0.5) / kN;
-    double w = hg(-std::sin(phi));
-    if (segment) w *= hg(std::cos(phi) * be - std::sin(phi) * bn);
+    double w = hg(-sin_phi);
+    if (segment) w *= hg(cos_phi * be - sin_phi * bn);
     sum += w;
+    const double next_sin = sin_phi * cs + cos_phi * ss;
+    cos_phi = cos_phi * cs - sin_phi * ss;
+    sin_phi = next_sin;
   }
-  return power / l * sum * (phi1 - phi0) / kN / d;
+  return power / l * sum * step / d;
 }
 
 double& Channel(RGBAccum* a, int c) { return c == 0 ? a->r : (c == 1 ? a->g : a->b); }
