@@ -101,17 +101,32 @@ if [ $media = 1 ]; then
   media_scenes=()
   for s in "${scenes[@]}"; do [ "$s" = volumetric-caustic ] || [[ "$s" == *cloud* ]] && media_scenes+=("$s"); done
   scenes=("${media_scenes[@]}")
-  # Against the truth too: volumetric-caustic's reference.exr; the cloud's path-traced here,
-  # capped at 5 minutes (its stated noise is in the bench's section).
-  media_args=(--methods adaptive-completion --truth-max-seconds 300)
+  # Same-lights errors only here: the truth is measured at 32² below (a 256² path-traced truth of
+  # the cloud would take hours, and volumetric-caustic's reference.exr is not its truth,
+  # docs/reference-accuracy.md).
+  media_args=(--methods adaptive-completion --truth none)
   # Near columns exact, then near lights sampled per row with K = 2048 and 512 draws
   # (docs/methods/adaptive-completion.md, "near lights sampled per row").
-  media_args+=(--settings "${LIGHTFARM_MEDIA_SETTINGS:-rho=0.1,sigma=0.01;rho=0.1,sigma=0.01,near_samples=2048;rho=0.1,sigma=0.01,near_samples=512}")
+  media_settings=${LIGHTFARM_MEDIA_SETTINGS:-rho=0.1,sigma=0.01;rho=0.1,sigma=0.01,near_samples=2048;rho=0.1,sigma=0.01,near_samples=512}
+  media_args+=(--settings "$media_settings")
 fi
 for s in "${scenes[@]}"; do
   bench "acc-$s" "$s" --resolution "$acc_res" --lights "$lights" --repeats "$repeats" \
     --reference-pixels "$ref_pixels" "${media_args[@]+"${media_args[@]}"}" || true
 done
+# Against the truth (the media issue's last target: time to reach 5% rel_l1 against the truth,
+# adaptive-completion against brute-force VRL gathering): 32², 4 camera samples per pixel, brute
+# force over every pixel, path-traced truths to 1% noise or 5 minutes (cached by the bench).
+# volumetric-caustic stops at 16000 lights (its brute force at 64000 would take ~10 minutes per run).
+if [ $media = 1 ]; then
+  for s in "${scenes[@]}"; do
+    truth_lights=${LIGHTFARM_MEDIA_TRUTH_LIGHTS:-4000,16000,64000}
+    [ "$s" = volumetric-caustic ] && truth_lights=${LIGHTFARM_MEDIA_TRUTH_LIGHTS:-4000,16000}
+    bench "truth-$s" "$s" --resolution "${LIGHTFARM_MEDIA_TRUTH_RESOLUTION:-32x32}" --spp 4 --lights "$truth_lights" \
+      --repeats 1 --truth path --truth-noise 0.01 --truth-max-seconds 300 \
+      --methods adaptive-completion --settings "$media_settings" || true
+  done
+fi
 [ $media = 1 ] || for s in cornell-box veach-mis; do
   bench "surf-$s-$surf_res" "$s" --resolution "$surf_res" --lights "${surf_lights:-$lights}" --repeats "$repeats" \
     --reference-pixels "$ref_pixels" || true
@@ -123,7 +138,7 @@ machine="$(nproc) cores ($(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | x
 mode=full; [ $quick = 1 ] && mode=quick; [ $standard = 1 ] && mode=standard; [ $surface = 1 ] && mode=surface; [ $media = 1 ] && mode=media
 LIGHTFARM_ACC_RES=$acc_res LIGHTFARM_ACC_LIGHTS=$lights python3 - "$work" "$assets.tmp" "$out.tmp" "$commit" "$machine" "$mode" "$(date -u +%Y-%m-%dT%H:%MZ)" \
   "${skipped[@]+"${skipped[@]}"}" <<'PY'
-import csv, math, os, re, shutil, statistics, sys
+import csv, json, math, os, re, shutil, statistics, sys
 from collections import defaultdict
 work, assets, out, commit, machine, mode, date = sys.argv[1:8]
 skipped = sys.argv[8:]
@@ -219,6 +234,8 @@ for tag in sorted(t for t in os.listdir(work) if t.startswith("acc-") and os.pat
         shutil.copytree(os.path.join(work, tag, "heatmaps"), os.path.join(dst, "heatmaps"))
     text = open(os.path.join(work, tag, "report.md")).read()
     text = re.sub(r"^(#+) lightfarm bench: .*$", f"## {scene}", text, count=1, flags=re.M)
+    if mode == "media":  # the truth is measured by the truth-* benches (see "Against the truth")
+        text = re.sub(r"\n## Against the truth\n.*?(?=\n## |\Z)", "\n", text, flags=re.S)
     text = re.sub(r"^## ", "### ", text[text.index("\n"):], flags=re.M)
     text = re.sub(r"\]\(((?!http)[^)]+)\)", lambda m: f"]({asset_rel}/{scene}/{m.group(1)})", text)
     md.append("")
@@ -304,6 +321,106 @@ if mode == "media":
     md.append("| scene | lights | setting | time per element | brute force's | ratio | met (≤ 1.2×) |")
     md.append("|---|---|---|---|---|---|---|")
     md.extend(cost_rows)
+
+    # Target 4: against the truth, time to reach 5% rel_l1 (and the looser levels, which show how
+    # far both are from it), adaptive-completion against brute-force gathering with its own lights.
+    md.append("")
+    md.append("Target 4: against the truth, adaptive-completion reaches 5% rel_l1 ≥ 10× sooner than brute-force "
+              "VRL gathering. Both are swept over the light count (brute force) and the light count and setting "
+              "(adaptive-completion); the fastest run at or below each level wins. 10% and 20% show how far both "
+              "are from 5%.")
+    truth_tags = sorted(t for t in os.listdir(work) if t.startswith("truth-") and os.path.exists(os.path.join(work, t, "results.csv")))
+    floor_lines = []
+    if truth_tags:
+        md.append("")
+        md.append("| scene | truth rel_l1 | brute force: fastest run | adaptive-completion: fastest run | ratio | met (≥ 10×) |")
+        md.append("|---|---|---|---|---|---|")
+    for tag in truth_tags:
+        raw = rows(tag)
+        g = defaultdict(list)
+        for r in raw:
+            g[(int(r["lights"]), r["method"], r["setting"].replace(" ", ","))].append(r)
+        runs = []
+        for (L, m, st), v in g.items():
+            t1 = [float(x["truth_rel_l1"]) for x in v if x["truth_rel_l1"] not in ("", "nan")]
+            if t1:
+                runs.append(dict(lights=L, method=m, setting=st, time=statistics.median(float(x["time_total_s"]) for x in v),
+                                 t1=statistics.median(t1)))
+        tj = {}
+        try:
+            tj = json.load(open(os.path.join(work, tag, "truth.json")))
+        except Exception:
+            pass
+        noise = tj.get("noise_rel_l1")
+        for level in (0.2, 0.1, 0.05):
+            def fastest(method_is_brute):
+                c = [x for x in runs if (x["method"] == "brute") == method_is_brute and x["t1"] <= level]
+                return min(c, key=lambda x: x["time"]) if c else None
+            b, a = fastest(True), fastest(False)
+            bs = f"{b['time']:.3g} s ({b['lights']} lights, {b['t1']:.3f})" if b else "—"
+            as_ = f"{a['time']:.3g} s ({a['lights']} lights, `{a['setting']}`, {a['t1']:.3f})" if a else "—"
+            ratio = f"{b['time'] / a['time']:.1f}×" if (a and b) else "—"
+            met = ("yes" if b["time"] / a["time"] >= 10 else "no") if (a and b) else ("no" if level == 0.05 else "—")
+            md.append(f"| {tag[6:]} | {level:.0%} | {bs} | {as_} | {ratio} | {met if level == 0.05 else '—'} |")
+        brute = sorted((x for x in runs if x["method"] == "brute"), key=lambda x: x["lights"])
+        if brute:
+            floor_lines.append(f"- {tag[6:]} ({raw[0]['width']}x{raw[0]['height']}, {raw[0]['spp']} spp; `{cmd_of(tag)}`): brute force's "
+                               "own truth rel_l1 " + ", ".join(f"{x['t1']:.3f} at {x['lights']} lights ({x['time']:.3g} s)" for x in brute)
+                               + (f"; the truth's own noise rel_l1 {noise:.3f} ({tj.get('label', '')})" if isinstance(noise, (int, float)) else ""))
+    if floor_lines:
+        md.append("")
+        md.append("Brute force with every light is the floor of every many-light method against the truth:")
+        md.append("")
+        md.extend(floor_lines)
+
+    # Why the sampled near lights stop short of target 1: at the largest light count, the error of
+    # near_samples=512 and 2048 gives the rate at which it falls with K, and the two times the cost
+    # of a draw; both extrapolated to the K that would reach 2%.
+    why = []
+    for tag in sorted(t for t in os.listdir(work) if t.startswith("acc-") and os.path.exists(os.path.join(work, t, "results.csv"))):
+        ms = medians(rows(tag))
+        if not ms:
+            continue
+        L = max(m["lights"] for m in ms)
+        at = {m["setting"]: m for m in ms if m["lights"] == L}
+        b = next((m for m in ms if m["method"] == "brute" and m["lights"] == L), None)
+        k_runs = sorted(((int(re.search(r"near_samples=(\d+)", st).group(1)), m) for st, m in at.items()
+                         if m["method"] != "brute" and re.search(r"near_samples=(\d+)", st)), key=lambda x: x[0])
+        if not b or len(k_runs) < 2:
+            continue
+        (k0, m0), (k1, m1) = k_runs[0], k_runs[-1]
+        if not (m0["l1"] > m1["l1"] > 0) or k1 <= k0:
+            why.append(f"- {tag[4:]}, {L} lights: rel_l1 {m0['l1']:.4f} at K = {k0} and {m1['l1']:.4f} at K = {k1}: "
+                       "more draws did not lower the error, so no extrapolation.")
+            continue
+        slope = math.log(m0["l1"] / m1["l1"]) / math.log(k1 / k0)
+        per_draw = (m1["time"] - m0["time"]) / (k1 - k0)
+        line = (f"- {tag[4:]}, {L} lights: with the near lights sampled per row, rel_l1 falls as K^−{slope:.2f} "
+                f"({m0['l1']:.4f} at K = {k0}, {m1['l1']:.4f} at K = {k1}; 1/√K would be K^−0.50)")
+        if m1["l1"] > 0.02 and per_draw > 0:
+            k2 = k1 * (m1["l1"] / 0.02) ** (1 / slope)
+            t2 = m1["time"] + per_draw * (k2 - k1)
+            line += (f"; 2% would take K ≈ {k2:.0f} draws per row, about {t2:.3g} s at the measured "
+                     f"{per_draw * 1e3:.3g} ms per unit of K: {b['time'] / t2:.1f}× brute force.")
+        else:
+            line += f"; K = {k1} is at or below 2% in {m1['time']:.3g} s ({b['time'] / m1['time']:.1f}× brute force)."
+        ex = at.get("rho=0.1,sigma=0.01")
+        if ex:
+            line += (f" With the near columns exact, {ex['l1']:.4f} in {ex['time']:.3g} s ({b['time'] / ex['time']:.1f}× brute force), "
+                     "and its elements grow with the lights (the scaling table).")
+        why.append(line)
+    if why:
+        md.append("")
+        md.append("## Why the targets are not met")
+        md.append("")
+        md.append("From the benches above (the near lights' sampling error and cost, extrapolated; a model, not a measurement):")
+        md.append("")
+        md.extend(why)
+        md.append("")
+        md.append("What was tried, with its numbers and the reason each was kept or rejected: "
+                  "[methods/adaptive-completion.md](methods/adaptive-completion.md) (near columns and the cheaper "
+                  "splits, a smooth part and a near-pair remainder, near lights sampled per row and their densities, "
+                  "pilot rows, the VRLs' emitted share, near lights drawn through the light tree, where the time goes).")
     open(out, "w").write("\n".join(md) + "\n")
     sys.exit(0)
 
