@@ -195,8 +195,8 @@ double NearBound(const LightingMatrix& matrix, uint32_t row, const VirtualLight&
   const double d = std::max(double(Length(to_x)), double(floor_distance));
   const double l = double(L.length);
   // φ from φ0 = atan(a) to φ1 = atan(b); their difference and the midpoints' sines and cosines
-  // by the addition formulas (one atan2 and two sincos per pair instead of two atans and eight
-  // trigonometric calls: this runs for every row and near light).
+  // by the addition formulas (one atan2, one sine and one cosine per pair instead of two atans and
+  // eight sines and cosines: this runs for every row and near light).
   const double a = -t0 / d, b = (l - t0) / d;
   const double span = std::atan2(b - a, 1 + a * b);  // φ1 − φ0 ∈ [0, π]
   // The light travels from the VRL point at φ to x along cos φ·e − sin φ·n (e: the unit vector
