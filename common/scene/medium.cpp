@@ -16,8 +16,13 @@ RGB ExpAttenuation(RGB sigma, float t) {
   return out;
 }
 
-// Exponential step -ln(1-u)/σ; u < 1 so the log is finite.
-float ExponentialStep(float u, float sigma) { return -std::log1p(-u) / sigma; }
+// Exponential step -ln(1-u)/σ; u < 1 so the log is finite (1 − u is exact for Rng::Uniform's
+// 24-bit values, so logf(1 − u) is as exact as log1pf(−u), and cheaper).
+float ExponentialStep(float u, float sigma) { return -std::log(1.f - u) / sigma; }
+
+// An optical-depth budget -ln(1-u) for tracking across majorant cells: one draw per tentative
+// collision, however many cells the ray crosses before it (exponential steps are memoryless).
+float ExponentialDepth(float u) { return -std::log(1.f - u); }
 
 // A heterogeneous estimator takes at most this many tentative collisions per call: with a
 // majorant far above the real density (or t so large that steps fall below its ulp) the loop
@@ -54,27 +59,37 @@ Medium Medium::Grid(RGB sigma_a, RGB sigma_s, float g, DensityGrid grid,
   m.sigma_s_ = sigma_s;
   m.g_ = g;
   m.grid_from_world_ = Affine3::From(grid_from_world);
-  m.cell_size_ = (grid.domain_hi - grid.domain_lo) / float(kMajorantRes);
+  // About kMajorantVoxels voxels per majorant cell along each axis, at least kMinMajorantRes and
+  // at most kMaxMajorantRes cells: majorants close to the density make tracking take few null
+  // collisions (a small grid gets cells finer than its voxels: one dense voxel must not raise the
+  // majorant of its neighbours).
+  const float extent[3] = {grid.domain_hi.x - grid.domain_lo.x, grid.domain_hi.y - grid.domain_lo.y,
+                           grid.domain_hi.z - grid.domain_lo.z};
+  for (int a = 0; a < 3; ++a) {
+    m.majorant_res_[a] = std::clamp(int(std::ceil(extent[a] / float(kMajorantVoxels))), kMinMajorantRes, kMaxMajorantRes);
+    m.cell_size_[a] = extent[a] / float(m.majorant_res_[a]);
+  }
+  const int rx = m.majorant_res_[0], ry = m.majorant_res_[1], rz = m.majorant_res_[2];
   // Majorant cell (i, j, k) covers grid coordinates [lo + i·w, lo + (i+1)·w]; trilinear
   // interpolation there reads samples floor(lo + i·w) .. floor(lo + (i+1)·w) + 1.
-  m.majorant_.assign(size_t(kMajorantRes) * kMajorantRes * kMajorantRes, 0.f);
+  m.majorant_.assign(size_t(rx) * size_t(ry) * size_t(rz), 0.f);
   int n[3] = {grid.nx, grid.ny, grid.nz};
-  int lo[3][kMajorantRes], hi[3][kMajorantRes];
+  std::vector<int> lo[3], hi[3];
   for (int a = 0; a < 3; ++a)
-    for (int i = 0; i < kMajorantRes; ++i) {
+    for (int i = 0; i < m.majorant_res_[a]; ++i) {
       float c0 = grid.domain_lo[a] + float(i) * m.cell_size_[a];
       float c1 = c0 + m.cell_size_[a];
-      lo[a][i] = std::max(0, int(std::floor(c0)));
-      hi[a][i] = std::min(n[a] - 1, int(std::floor(c1)) + 1);
+      lo[a].push_back(std::max(0, int(std::floor(c0))));
+      hi[a].push_back(std::min(n[a] - 1, int(std::floor(c1)) + 1));
     }
-  for (int k = 0; k < kMajorantRes; ++k)
-    for (int j = 0; j < kMajorantRes; ++j)
-      for (int i = 0; i < kMajorantRes; ++i) {
+  for (int k = 0; k < rz; ++k)
+    for (int j = 0; j < ry; ++j)
+      for (int i = 0; i < rx; ++i) {
         float mx = 0;
-        for (int z = lo[2][k]; z <= hi[2][k]; ++z)
-          for (int y = lo[1][j]; y <= hi[1][j]; ++y)
-            for (int x = lo[0][i]; x <= hi[0][i]; ++x) mx = std::max(mx, grid.At(x, y, z));
-        m.majorant_[(size_t(k) * kMajorantRes + j) * kMajorantRes + i] = mx;
+        for (int z = lo[2][size_t(k)]; z <= hi[2][size_t(k)]; ++z)
+          for (int y = lo[1][size_t(j)]; y <= hi[1][size_t(j)]; ++y)
+            for (int x = lo[0][size_t(i)]; x <= hi[0][size_t(i)]; ++x) mx = std::max(mx, grid.At(x, y, z));
+        m.majorant_[(size_t(k) * size_t(ry) + size_t(j)) * size_t(rx) + size_t(i)] = mx;
         m.max_density_ = std::max(m.max_density_, mx);
       }
   for (int c = 0; c < 8; ++c) {
@@ -99,12 +114,17 @@ RGB Medium::Transmittance(const MediumRay& ray, Rng& rng) const {
   RGB T(1.f);
   int steps = 0;
   // Ratio tracking (Novák et al. 2014): T = Π (1 - σ_t(x_i)/σ̄) over tentative collisions.
+  float depth = ExponentialDepth(rng.Uniform());  // to the next tentative collision
   ForEachMajorant(ray, [&](float t0, float t1, float smaj) {
     if (!(smaj > 0)) return true;
     float t = t0;
     while (++steps < kMaxTrackingSteps) {
-      t += ExponentialStep(rng.Uniform(), smaj);
-      if (!(t < t1)) return true;
+      if (!(depth < smaj * (t1 - t))) {
+        depth -= smaj * (t1 - t);
+        return true;
+      }
+      t += depth / smaj;
+      depth = ExponentialDepth(rng.Uniform());
       float dens = grid_->Lookup(og + dg * t);
       for (int c = 0; c < 3; ++c) T[c] *= std::max(0.f, 1.f - dens * st[c] / smaj);
       // Russian roulette once the estimate is small (unbiased: survivors are reweighted).
@@ -149,12 +169,17 @@ FreePathSample Medium::SampleFreePath(const MediumRay& ray, Rng& rng) const {
   const Vec3 og = grid_from_world_.Point(ray.o), dg = grid_from_world_.Vector(ray.d);
   const RGB ss = sigma_s();
   int steps = 0;
+  float depth = ExponentialDepth(rng.Uniform());  // to the next tentative collision
   ForEachMajorant(ray, [&](float t0, float t1, float smaj) {
     if (!(smaj > 0)) return true;
     float t = t0;
     while (++steps < kMaxTrackingSteps) {
-      t += ExponentialStep(rng.Uniform(), smaj);
-      if (!(t < t1)) return true;
+      if (!(depth < smaj * (t1 - t))) {
+        depth -= smaj * (t1 - t);
+        return true;
+      }
+      t += depth / smaj;
+      depth = ExponentialDepth(rng.Uniform());
       float dens = grid_->Lookup(og + dg * t);
       float real = dens * smax;  // max-channel σ_t at x
       if (rng.Uniform() * smaj < real) {

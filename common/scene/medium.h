@@ -14,6 +14,8 @@
 // tracking multiplies per channel by (1 − σ_t,c(x)/σ̄), which never goes negative.
 #pragma once
 
+#include <algorithm>
+#include <cmath>
 #include <memory>
 #include <string>
 #include <vector>
@@ -105,8 +107,17 @@ class Medium {
   // sigma_maj is the scalar majorant max_c σ_t,c · max density over the piece.
   template <typename Fn>
   void ForEachMajorant(const MediumRay& ray, Fn&& fn) const;
+  // Calls fn(t0, t1, empty) for consecutive pieces of [0, ray.tmax] inside the density's
+  // domain, in order: a piece over an empty majorant cell whole (empty = true: the density is 0
+  // on all of it), else one piece per grid cell the ray crosses, so that the density is one
+  // trilinear polynomial on each (a cubic in t: Simpson's rule integrates it exactly). Grid
+  // media only.
+  template <typename Fn>
+  void ForEachDensityCell(const MediumRay& ray, Fn&& fn) const;
 
-  static constexpr int kMajorantRes = 16;
+  // The majorant grid: about this many density voxels per cell along each axis, between
+  // kMinMajorantRes and kMaxMajorantRes cells.
+  static constexpr int kMajorantVoxels = 8, kMinMajorantRes = 16, kMaxMajorantRes = 64;
 
  private:
   RGB sigma_a_, sigma_s_;
@@ -114,7 +125,8 @@ class Medium {
   std::string name_;
   std::shared_ptr<const DensityGrid> grid_;
   Affine3 grid_from_world_;
-  std::vector<float> majorant_;  // kMajorantRes³ max densities, x fastest
+  std::vector<float> majorant_;  // max densities of majorant_res_ cells, x fastest
+  int majorant_res_[3] = {1, 1, 1};
   Vec3 cell_size_;               // grid coordinates per majorant cell
   float max_density_ = 0;
   Bounds3 world_bounds_;
@@ -156,10 +168,10 @@ void Medium::ForEachMajorant(const MediumRay& ray, Fn&& fn) const {
   float next[3], delta[3];
   for (int a = 0; a < 3; ++a) {
     float pa = (o[a] + d[a] * t0 - g.domain_lo[a]) / cell_size_[a];
-    cell[a] = Clamp(int(std::floor(pa)), 0, kMajorantRes - 1);
+    cell[a] = Clamp(int(std::floor(pa)), 0, majorant_res_[a] - 1);
     if (d[a] > 0) {
       step[a] = 1;
-      limit[a] = kMajorantRes;
+      limit[a] = majorant_res_[a];
       float edge = g.domain_lo[a] + float(cell[a] + 1) * cell_size_[a];
       next[a] = t0 + (edge - (o[a] + d[a] * t0)) / d[a];
       delta[a] = cell_size_[a] / d[a];
@@ -177,16 +189,58 @@ void Medium::ForEachMajorant(const MediumRay& ray, Fn&& fn) const {
     }
   }
   float t = t0;
-  for (int guard = 0; guard < 4 * kMajorantRes + 8 && t < t1; ++guard) {
+  const int max_steps = majorant_res_[0] + majorant_res_[1] + majorant_res_[2] + 8;
+  for (int guard = 0; guard < max_steps && t < t1; ++guard) {
     int axis = next[0] < next[1] ? (next[0] < next[2] ? 0 : 2) : (next[1] < next[2] ? 1 : 2);
     float tend = std::min(std::max(next[axis], t), t1);
-    float dens = majorant_[(size_t(cell[2]) * kMajorantRes + cell[1]) * kMajorantRes + cell[0]];
+    float dens = majorant_[(size_t(cell[2]) * size_t(majorant_res_[1]) + size_t(cell[1])) * size_t(majorant_res_[0]) +
+                           size_t(cell[0])];
     if (tend > t && !fn(t, tend, dens * smax)) return;
     t = tend;
     cell[axis] += step[axis];
     if (cell[axis] == limit[axis]) return;
     next[axis] += delta[axis];
   }
+}
+
+template <typename Fn>
+void Medium::ForEachDensityCell(const MediumRay& ray, Fn&& fn) const {
+  if (!grid_) return;
+  const Vec3 o = grid_from_world_.Point(ray.o), d = grid_from_world_.Vector(ray.d);
+  ForEachMajorant(ray, [&](float t0, float t1, float smaj) {
+    if (!(smaj > 0)) {
+      fn(t0, t1, true);
+      return true;
+    }
+    // The next integer face along each axis (grid coordinates), as an index so that every
+    // crossing is computed afresh from (face - o)/d instead of accumulated.
+    float face[3], inv[3];
+    const Vec3 p0 = o + d * t0;
+    for (int a = 0; a < 3; ++a) {
+      if (d[a] > 0) {
+        face[a] = std::floor(p0[a]) + 1.f;
+        inv[a] = 1.f / d[a];
+      } else if (d[a] < 0) {
+        face[a] = std::ceil(p0[a]) - 1.f;
+        inv[a] = 1.f / d[a];
+      } else {
+        face[a] = 0;
+        inv[a] = 0;
+      }
+    }
+    auto crossing = [&](int a) { return d[a] != 0.f ? (face[a] - o[a]) * inv[a] : kInfinity; };
+    float t = t0;
+    for (int guard = 0; guard < (1 << 16) && t < t1; ++guard) {
+      float next = std::min({crossing(0), crossing(1), crossing(2), t1});
+      if (next > t) {
+        fn(t, next, false);
+        t = next;
+      }
+      for (int a = 0; a < 3; ++a)
+        if (d[a] != 0.f && crossing(a) <= t) face[a] += d[a] > 0 ? 1.f : -1.f;
+    }
+    return true;
+  });
 }
 
 }  // namespace lightfarm
