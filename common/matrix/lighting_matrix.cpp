@@ -3,6 +3,7 @@
 #include "common/util/options.h"
 
 #include <embree3/rtcore.h>
+#include <tbb/parallel_for.h>
 
 #include <array>
 #include <cmath>
@@ -178,7 +179,11 @@ RGB LightIntensityTowards(const VirtualLight& L, Vec3 w, const std::vector<Mater
 LightingMatrix::~LightingMatrix() = default;
 
 void ReadMatrixParams(const OptionMap& params, uint64_t seed, MatrixOptions* options) {
-  options->segment_samples = int(params.GetInt("segment_samples", 4, 1, 64));
+  options->segment_samples = int(params.GetInt("segment_samples", 2, 1, 64));
+  // The emitters' single scattering in media: on the camera side with this many samples per
+  // medium piece, or (0) gathered from their columns by the eye segments.
+  options->media_direct_samples = int(params.GetInt("media_direct", 2, 0, 256));
+  options->segment_emitter_columns = options->media_direct_samples == 0;
   // Path-traced compensation of the clamp, samples per surface receiver (clamp_compensation.cpp).
   options->compensation_samples = int(params.GetInt("clamp_compensation", 4, 0, 64));
   // The element bound's scale (MatrixOptions::bsdf_clamp).
@@ -208,6 +213,8 @@ LightingMatrix::LightingMatrix(const Scene& scene, const ReceiverSet& receivers,
   clamp_distance_ = options.clamp * std::max(scene.bounds().Radius(), 1e-6f);
   clamp_distance2_ = clamp_distance_ * clamp_distance_;
   segment_samples_ = options.segment_samples;
+  density_fraction_ = options.density_fraction;
+  segment_emitter_columns_ = options.segment_emitter_columns;
   max_depth_ = scene.hints().max_depth;
   compensation_samples_ = options.compensation_samples;
   seed_ = options.seed;
@@ -264,6 +271,7 @@ LightingMatrix::LightingMatrix(const Scene& scene, const ReceiverSet& receivers,
     r.origin_front = OffsetRayOrigin(r.p, r.ng, r.ng);
     r.origin_back = OffsetRayOrigin(r.p, r.ng, -r.ng);
   }
+  BuildMediumTracks();
   light_frames_.resize(lights.size());
   diffuse_lights_.resize(lights.size());
   DiffuseLightArrays& a = light_arrays_;
@@ -295,6 +303,54 @@ LightingMatrix::LightingMatrix(const Scene& scene, const ReceiverSet& receivers,
     a.two_sided[j] = L.two_sided;
     a.depth[j] = L.depth;
   }
+}
+
+void LightingMatrix::BuildMediumTracks() {
+  const std::vector<Medium>& media = scene_.media();
+  auto in_grid = [&](int medium) { return medium >= 0 && size_t(medium) < media.size() && !media[size_t(medium)].homogeneous(); };
+  bool any_segment = false, any_light = false;
+  for (const EyeSegment& s : receivers_.segments) any_segment |= in_grid(s.medium);
+  for (const VirtualLight& L : lights_.lights) any_light |= L.IsRay() && in_grid(L.medium);
+  if (any_segment) {
+    segment_tracks_.resize(receivers_.segments.size());
+    tbb::parallel_for(size_t(0), receivers_.segments.size(), [&](size_t i) {
+      const EyeSegment& s = receivers_.segments[i];
+      if (in_grid(s.medium)) segment_tracks_[i] = MediumTrack(media[size_t(s.medium)], {s.o, s.d, s.length});
+    });
+  }
+  if (any_light) {
+    light_tracks_.resize(lights_.size());
+    tbb::parallel_for(size_t(0), lights_.size(), [&](size_t j) {
+      const VirtualLight& L = lights_.lights[j];
+      if (L.IsRay() && in_grid(L.medium)) light_tracks_[j] = MediumTrack(media[size_t(L.medium)], {L.p, L.n, L.length});
+    });
+  }
+  for (const std::vector<MediumTrack>* tracks : {&segment_tracks_, &light_tracks_})
+    for (const MediumTrack& t : *tracks) {
+      medium_tracks_ += t.knots() > 0;
+      medium_track_knots_ += t.knots();
+    }
+}
+
+float LightingMatrix::DensityFraction(int medium_a, int medium_b) const {
+  const std::vector<Medium>& media = scene_.media();
+  const bool grid = (medium_a >= 0 && !media[size_t(medium_a)].homogeneous()) ||
+                    (medium_b >= 0 && !media[size_t(medium_b)].homogeneous());
+  return grid ? density_fraction_ : 0.f;
+}
+
+const MediumTrack& LightingMatrix::SegmentTrack(uint32_t si, MediumTrack* scratch) const {
+  const EyeSegment& s = receivers_.segments[si];
+  if (si < segment_tracks_.size() && !scene_.media()[size_t(s.medium)].homogeneous()) return segment_tracks_[si];
+  *scratch = MediumTrack(scene_.media()[size_t(s.medium)], {s.o, s.d, s.length});
+  return *scratch;
+}
+
+const MediumTrack& LightingMatrix::LightTrack(uint32_t col, MediumTrack* scratch) const {
+  const VirtualLight& L = lights_.lights[col];
+  if (col < light_tracks_.size() && !scene_.media()[size_t(L.medium)].homogeneous()) return light_tracks_[col];
+  *scratch = MediumTrack(scene_.media()[size_t(L.medium)], {L.p, L.n, L.length});
+  return *scratch;
 }
 
 // Every step mirrors the general path in EvaluateBatched with the same float operations in the

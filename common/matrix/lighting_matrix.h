@@ -14,6 +14,7 @@
 #include "common/lights/virtual_light.h"
 #include "common/integrator/path_tracer.h"
 #include "common/receivers/receivers.h"
+#include "common/scene/medium_track.h"
 #include "common/scene/scene.h"
 
 namespace lightfarm {
@@ -32,9 +33,21 @@ struct MatrixOptions {
   // is the brightest a Lambertian pair can be, so it binds only on glossy BSDF peaks. 0 turns it
   // off. The clamp compensation recovers what it removes.
   float bsdf_clamp = 1.f;
-  // Samples per element of an eye-segment row (equi-angular sampling along the segment), and
-  // per element of a VRL column (vrl_element.cpp).
-  int segment_samples = 4;
+  // Samples per element of an eye-segment row and per element of a VRL column
+  // (segment_element.cpp, vrl_element.cpp; a real light on an eye segment takes 16 times more).
+  int segment_samples = 2;
+  // Media elements in grid media (segment_element.cpp, vrl_element.cpp): the share of their
+  // samples drawn where the media scatter (MediumTrack), the rest where the geometry term peaks.
+  // Homogeneous media draw them all from the geometric pdfs (LightingMatrix::DensityFraction).
+  float density_fraction = 0.5f;
+  // Whether eye-segment rows gather the emitters' own columns (point, spot, distant lights, area
+  // VPLs, an environment's directions). False when the camera side estimates the emitters'
+  // single scattering in media (ReceiverOptions::media_direct_samples): the rows then gather
+  // only the lights particle paths left, and each path is counted once.
+  bool segment_emitter_columns = true;
+  // --param media_direct: samples per camera-path medium piece of the emitters' single
+  // scattering (ReceiverOptions::media_direct_samples); 0 leaves it to the emitters' columns.
+  int media_direct_samples = 0;
   // The Lambertian fast path of surface elements (see LightingMatrix::DiffuseElement). It gives
   // the same bits as the general path; false forces the general path (tests compare the two).
   bool diffuse_fast_path = true;
@@ -155,6 +168,11 @@ class LightingMatrix {
   bool has_extra_light() const { return compensates() || gathers_caustics(); }
   RGBAccum ExtraLight(uint32_t row, MatrixCounters* counters) const;
 
+  // Tabulated media tracks (eye segments and VRL pieces in grid media) and their knots: the
+  // memory and work density-aware elements add (0 without grid media).
+  size_t medium_tracks() const { return medium_tracks_; }
+  size_t medium_track_knots() const { return medium_track_knots_; }
+
   // Benchmarks only (bench/): appends every shadow ray handed to Embree to `rays` (not
   // thread-safe: record from one thread). nullptr stops recording.
   void RecordShadowRays(std::vector<RTCRay>* rays) const { recorded_rays_ = rays; }
@@ -211,6 +229,15 @@ class LightingMatrix {
   // segment (Eq. 3), each `segment_samples` samples with one batch of shadow rays.
   RGB VrlPointElement(uint32_t point_row, uint32_t col, MatrixCounters* counters) const;
   RGB VrlSegmentElement(uint32_t segment, uint32_t col, MatrixCounters* counters) const;
+  // The in-scattering track of an eye-segment row / a VRL column: the stored one in a grid
+  // medium; built into `scratch` (closed forms, no knots) in a homogeneous one.
+  const MediumTrack& SegmentTrack(uint32_t segment, MediumTrack* scratch) const;
+  const MediumTrack& LightTrack(uint32_t col, MediumTrack* scratch) const;
+  void BuildMediumTracks();
+  // The share of an element's samples drawn from the tracks: MatrixOptions::density_fraction when
+  // one of its pieces lies in a grid medium, else 0 (in a homogeneous medium σ_s·Tr is smooth and
+  // the geometric pdfs alone were half as noisy: docs/methods/media-elements.md).
+  float DensityFraction(int medium_a, int medium_b) const;
   // Which entries a batched evaluation visits: arbitrary ones, one row against consecutive
   // lights (Row, RowSum: `fixed` = the row), or one light against a row list (Column: `fixed` =
   // the light). The last two run the fast path's geometry a batch at a time (vectorised).
@@ -258,7 +285,13 @@ class LightingMatrix {
   mutable std::once_flag caustic_once_;
   mutable std::unique_ptr<CausticPhotonMap> caustic_map_;
   mutable std::vector<RTCRay>* recorded_rays_ = nullptr;
+  // Tracks of eye segments and VRLs in grid media (empty where the medium is homogeneous),
+  // tabulated once here: every element on the row or column reuses them.
+  std::vector<MediumTrack> segment_tracks_, light_tracks_;
+  size_t medium_tracks_ = 0, medium_track_knots_ = 0;
   int segment_samples_ = 4;
+  float density_fraction_ = 0.5f;
+  bool segment_emitter_columns_ = true;
   int max_depth_ = 5;
 };
 

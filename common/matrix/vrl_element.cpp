@@ -8,11 +8,19 @@
 //   A = β ∫_0^ℓe ∫_0^ℓ Tr(a→x_t) σ_s(x_t) p_g(x_t) V̂(x_t, y_s) G(x_t, y_s)
 //                      Φ Tr(b→y_s) σ_s(y_s) p_g(y_s) ds dt
 // with ω_s the unit direction y_s → receiver, V̂ = visibility × transmittance (generalized
-// visibility) and G = 1/max(d², d_min²) clamped like every virtual light.
+// visibility) and G = 1/max(d², d_min²) clamped like every virtual light. An unclamped VRL
+// element is ~1/h for a VRL passing at h from a point, and for two nearly parallel lines at h
+// (a distant light's first flights beside an orthographic camera's rays), unbounded; the clamp
+// keeps every element bounded at the price of the light of pairs closer than d_min
+// (docs/methods/media-elements.md measures it).
 //
-// Sampling: equi-angular in s towards the surface point (Kulla & Fajardo 2012); for segments,
-// s ∝ 1/(distance from y_s to the eye ray's line) and then t equi-angular towards y_s
-// (Novák 2012, Sec. 4). Each element casts its `segment_samples` shadow rays as one batch.
+// Sampling (media_sampling.h), `segment_samples` samples per element mixed by the balance
+// heuristic: a fraction `density_fraction` (MatrixOptions; in grid media) where the media scatter (s ∝ σ_s·Tr along the VRL, t ∝
+// σ_s·Tr along the eye segment, from their MediumTracks, so no sample lands in empty space), the
+// rest where the geometry term peaks (VRL → point: s equi-angular towards the point, Kulla &
+// Fajardo 2012; VRL → segment: s ∝ 1/(distance to the eye ray's line), then t equi-angular
+// towards y_s, Novák 2012). Tr(b→y_s) and Tr(a→x_t) are the tracks' exact values; the
+// connection's transmittance is ratio-tracked. Each element casts its shadow rays as one batch.
 #include <embree3/rtcore.h>
 
 #include <algorithm>
@@ -20,6 +28,7 @@
 #include <cmath>
 
 #include "common/matrix/lighting_matrix.h"
+#include "common/matrix/media_sampling.h"
 #include "common/scene/phase.h"
 
 namespace lightfarm {
@@ -27,59 +36,6 @@ namespace lightfarm {
 namespace {
 
 constexpr int kMaxVrlSamples = 64;
-
-// Equi-angular sampling of a parameter on [0, len] of the line o + s·d (d unit) towards the
-// point c: pdf ∝ 1/(D² + (s − Δ)²), uniform in the angle the line subtends at c.
-struct EquiAngular {
-  float delta = 0, dist = 0, theta_a = 0, theta_b = 0;
-  EquiAngular(Vec3 o, Vec3 d, float len, Vec3 c) {
-    delta = Dot(c - o, d);
-    dist = std::max(Length(c - (o + d * delta)), 1e-7f);
-    theta_a = std::atan2(-delta, dist);
-    theta_b = std::atan2(len - delta, dist);
-  }
-  bool Valid() const { return theta_b > theta_a; }
-  float Sample(float u, float len) const {
-    return Clamp(delta + dist * std::tan(theta_a + u * (theta_b - theta_a)), 0.f, len);
-  }
-  float Pdf(float s) const {
-    return dist / ((theta_b - theta_a) * (dist * dist + Sqr(s - delta)));
-  }
-};
-
-// Novák 2012's VRL sampling: s on [0, len] of the VRL b + s·ψ with pdf ∝ 1/h(s), h(s) the
-// distance from y_s to the (infinite) eye-ray line a + t·ω:
-//   h(s)² = h0² + sin²θ (s − s0)²   (θ the angle between the lines, s0 the closest point),
-// whose CDF is an asinh. h0 is floored so the pdf stays finite for intersecting lines (still a
-// normalised pdf, just not exactly ∝ 1/h); near-parallel lines sample s uniformly.
-struct InverseDistance {
-  float s0 = 0, h0 = 0, sin_t = 0, a = 0, b = 0, len = 0;
-  bool uniform = false;
-  InverseDistance(Vec3 vrl_o, Vec3 vrl_d, float vrl_len, Vec3 eye_o, Vec3 eye_d, float h_floor) {
-    len = vrl_len;
-    auto perp = [&](Vec3 v) { return v - eye_d * Dot(v, eye_d); };
-    Vec3 pw = perp(vrl_o - eye_o), pd = perp(vrl_d);
-    float sin2 = LengthSquared(pd);
-    if (!(sin2 > 1e-6f)) {
-      uniform = true;
-      return;
-    }
-    sin_t = std::sqrt(sin2);
-    s0 = -Dot(pw, pd) / sin2;
-    h0 = std::max(SafeSqrt(LengthSquared(pw) - Sqr(Dot(pw, pd)) / sin2), h_floor);
-    a = std::asinh((0 - s0) * sin_t / h0);
-    b = std::asinh((len - s0) * sin_t / h0);
-    if (!(b > a)) uniform = true;
-  }
-  float Sample(float u) const {
-    if (uniform) return u * len;
-    return Clamp(s0 + h0 / sin_t * std::sinh(a + u * (b - a)), 0.f, len);
-  }
-  float Pdf(float s) const {
-    if (uniform) return 1.f / len;
-    return sin_t / ((b - a) * std::sqrt(h0 * h0 + Sqr(sin_t * (s - s0))));
-  }
-};
 
 // A shadow ray from `from` to `to` (unnormalised direction, tfar just short of 1).
 void SetShadowRay(RTCRay* ray, Vec3 from, Vec3 to, uint32_t id) {
@@ -134,20 +90,33 @@ RGB LightingMatrix::VrlPointElement(uint32_t ri, uint32_t col, MatrixCounters* c
   const VirtualLight& L = lights_.lights[col];
   if (L.depth > row.light_depth_budget) return RGB(0.f);
   if (L.medium < 0 || !(L.length > 0)) return RGB(0.f);
-  const Medium& med = scene_.media()[L.medium];
-  const int n = std::clamp(segment_samples_, 1, kMaxVrlSamples);
+  MediumTrack light_scratch;
+  const MediumTrack& light = LightTrack(col, &light_scratch);
+  if (light.empty()) return RGB(0.f);
+  const StrategyMix mix(std::clamp(segment_samples_, 1, kMaxVrlSamples), DensityFraction(L.medium, -1));
   Rng rng(HashSeed({uint64_t(RngStream::kMedium), seed_, 2, ri, col}));
   const EquiAngular ea(L.p, L.n, L.length, row.p);
-  if (!ea.Valid()) return RGB(0.f);
   const std::vector<Material>& materials = scene_.materials();
   alignas(16) std::array<RTCRay, kMaxVrlSamples> rays;
   std::array<PendingSample, kMaxVrlSamples> pending;
   size_t nrays = 0;
-  for (int k = 0; k < n; ++k) {
-    float u = Clamp((float(k) + rng.Uniform()) / float(n), 0.f, 0x1.fffffep-1f);
-    float s = ea.Sample(u, L.length);
-    float pdf = ea.Pdf(s);
-    if (!(pdf > 0) || !std::isfinite(pdf)) continue;
+  for (int k = 0; k < mix.n; ++k) {
+    // s where the VRL scatters, or equi-angular towards the point (the 1/d² peak).
+    float u;
+    float s, pdf_density;
+    size_t where;
+    if (mix.First(k, rng, &u)) {
+      s = light.Sample(u, &pdf_density, &where);
+    } else {
+      if (!ea.Valid()) continue;
+      s = ea.Sample(u);
+      where = light.Locate(s);
+      pdf_density = light.Pdf(s, where);
+    }
+    const float weight = mix.Weight(pdf_density, ea.Valid() ? ea.Pdf(s) : 0.f);
+    if (!(weight > 0)) continue;
+    const MediumTrack::Point lp = light.At(s, where);
+    if (lp.sigma_s.IsBlack()) continue;
     Vec3 y = L.p + L.n * s;
     Vec3 d = y - row.p;
     float dist2 = LengthSquared(d);
@@ -159,15 +128,11 @@ RGB LightingMatrix::VrlPointElement(uint32_t ri, uint32_t col, MatrixCounters* c
     if (Dot(row.ng, w) * wi_local.z <= 0) continue;
     RGB f = EvalBSDF(materials[row.material], row.wo_local, wi_local, TransportMode::kRadiance);
     if (f.IsBlack()) continue;
-    RGB sigma_s = med.sigma_s() * med.Density(y);
-    if (sigma_s.IsBlack()) continue;
     // Light travelling along ψ scatters towards the receiver (-w).
     float phase = HenyeyGreenstein(-Dot(L.n, w), L.g);
-    RGB tr_light = med.Transmittance({L.p, L.n, s}, rng);
-    if (!med.homogeneous()) ++counters->transmittance_evals;
     float geometry = 1.f / std::max(dist2, clamp_distance2_);
-    RGB value = row.throughput * f * L.power * sigma_s * tr_light *
-                (phase * std::abs(wi_local.z) * geometry / (pdf * float(n)));
+    RGB value = row.throughput * f * L.power * lp.sigma_s * lp.tr *
+                (phase * std::abs(wi_local.z) * geometry * weight);
     if (value.IsBlack() || !value.IsFinite()) continue;
     Vec3 o = OffsetRayOrigin(row.p, row.ng, w);
     if (!IsFinite(o) || !IsFinite(y)) continue;  // never hand Embree a NaN ray
@@ -191,50 +156,58 @@ RGB LightingMatrix::VrlSegmentElement(uint32_t si, uint32_t col, MatrixCounters*
   const VirtualLight& L = lights_.lights[col];
   if (int(L.depth) + int(seg.depth) > max_depth_) return RGB(0.f);
   if (seg.medium < 0 || !(seg.length > 0) || L.medium < 0 || !(L.length > 0)) return RGB(0.f);
+  MediumTrack eye_scratch, light_scratch;
+  const MediumTrack& eye = SegmentTrack(si, &eye_scratch);
+  const MediumTrack& light = LightTrack(col, &light_scratch);
+  if (eye.empty() || light.empty()) return RGB(0.f);
   const Medium& eye_med = scene_.media()[seg.medium];
-  const Medium& light_med = scene_.media()[L.medium];
-  const int n = std::clamp(segment_samples_, 1, kMaxVrlSamples);
+  const StrategyMix mix(std::clamp(segment_samples_, 1, kMaxVrlSamples), DensityFraction(L.medium, seg.medium));
   Rng rng(HashSeed({uint64_t(RngStream::kMedium), seed_, 3, si, col}));
   // The floor on the lines' distance: far below the clamp distance and the segments' scale.
   const float h_floor = 1e-4f * std::max({L.length, seg.length, clamp_distance_});
   const InverseDistance vrl_sampler(L.p, L.n, L.length, seg.o, seg.d, h_floor);
-  // Latin-hypercube pairing of the strata of s and t: a shuffled stratum index for t.
-  std::array<int, kMaxVrlSamples> t_stratum;
-  for (int k = 0; k < n; ++k) t_stratum[size_t(k)] = k;
-  for (int k = n - 1; k > 0; --k)
-    std::swap(t_stratum[size_t(k)], t_stratum[size_t(rng.UniformInt(uint32_t(k + 1)))]);
   alignas(16) std::array<RTCRay, kMaxVrlSamples> rays;
   std::array<PendingSample, kMaxVrlSamples> pending;
   size_t nrays = 0;
-  for (int k = 0; k < n; ++k) {
-    float us = Clamp((float(k) + rng.Uniform()) / float(n), 0.f, 0x1.fffffep-1f);
-    float ut = Clamp((float(t_stratum[size_t(k)]) + rng.Uniform()) / float(n), 0.f, 0x1.fffffep-1f);
-    float s = vrl_sampler.Sample(us);
-    float pdf_s = vrl_sampler.Pdf(s);
-    Vec3 y = L.p + L.n * s;
+  for (int k = 0; k < mix.n; ++k) {
+    // Strategy 1: s and t where the VRL and the eye segment scatter. Strategy 2 (Novák 2012):
+    // s ∝ 1/(distance to the eye ray's line), then t equi-angular towards y_s.
+    float u;
+    const bool density = mix.First(k, rng, &u);
+    const float u2 = rng.Uniform();
+    float s, t = 0, pdf_s_density = 0, pdf_t_density = 0;
+    size_t s_where, t_where = MediumTrack::kOutside;
+    if (density) {
+      s = light.Sample(u, &pdf_s_density, &s_where);
+      t = eye.Sample(u2, &pdf_t_density, &t_where);
+    } else {
+      s = vrl_sampler.Sample(u);
+      s_where = light.Locate(s);
+      pdf_s_density = light.Pdf(s, s_where);
+    }
+    const Vec3 y = L.p + L.n * s;
     const EquiAngular ea(seg.o, seg.d, seg.length, y);
-    if (!ea.Valid()) continue;
-    float t = ea.Sample(ut, seg.length);
-    float pdf_t = ea.Pdf(t);
-    float pdf = pdf_s * pdf_t;
-    if (!(pdf > 0) || !std::isfinite(pdf)) continue;
-    Vec3 x = seg.o + seg.d * t;
+    if (!density) {
+      if (!ea.Valid()) continue;
+      t = ea.Sample(u2);
+      t_where = eye.Locate(t);
+      pdf_t_density = eye.Pdf(t, t_where);
+    }
+    const float weight = mix.Weight(pdf_s_density * pdf_t_density,
+                                    ea.Valid() ? vrl_sampler.Pdf(s) * ea.Pdf(t) : 0.f);
+    if (!(weight > 0)) continue;
+    const MediumTrack::Point lp = light.At(s, s_where), ep = eye.At(t, t_where);
+    if (lp.sigma_s.IsBlack() || ep.sigma_s.IsBlack()) continue;
+    const Vec3 x = seg.o + seg.d * t;
     Vec3 d = y - x;
     float dist2 = LengthSquared(d);
     if (!(dist2 > 0)) continue;
     float dist = std::sqrt(dist2);
     Vec3 w = d / dist;  // eye point → VRL point
-    RGB sigma_eye = eye_med.sigma_s() * eye_med.Density(x);
-    RGB sigma_light = light_med.sigma_s() * light_med.Density(y);
-    if (sigma_eye.IsBlack() || sigma_light.IsBlack()) continue;
     // Light travels ψ, scatters at y_s towards x (-w), then at x towards the camera (-seg.d).
     float phase = HenyeyGreenstein(-Dot(L.n, w), L.g) * HenyeyGreenstein(Dot(w, seg.d), eye_med.g());
-    RGB tr = eye_med.Transmittance({seg.o, seg.d, t}, rng) * light_med.Transmittance({L.p, L.n, s}, rng);
-    if (!eye_med.homogeneous()) ++counters->transmittance_evals;
-    if (!light_med.homogeneous()) ++counters->transmittance_evals;
     float geometry = 1.f / std::max(dist2, clamp_distance2_);
-    RGB value = seg.throughput * L.power * sigma_eye * sigma_light * tr *
-                (phase * geometry / (pdf * float(n)));
+    RGB value = seg.throughput * L.power * ep.sigma_s * ep.tr * lp.sigma_s * lp.tr * (phase * geometry * weight);
     if (value.IsBlack() || !value.IsFinite()) continue;
     if (!IsFinite(x) || !IsFinite(y)) continue;  // never hand Embree a NaN ray
     SetShadowRay(&rays[nrays], x, y, uint32_t(nrays));

@@ -57,9 +57,13 @@ struct Fixture {
   LightSet lights;
 };
 
-// Mean of the element over `copies` identical segment rows (each seeded by its row).
-double MeanSegmentElement(Fixture& f, const EyeSegment& seg, const VirtualLight& light,
-                          int copies, int samples) {
+// Mean of the element over `copies` identical segment rows (each seeded by its row), and its
+// standard error.
+struct MeanAndError {
+  double mean = 0, error = 0;
+};
+MeanAndError MeanSegmentElement(Fixture& f, const EyeSegment& seg, const VirtualLight& light,
+                                int copies, int samples) {
   f.receivers = ReceiverSet{};
   f.receivers.width = f.receivers.height = 1;
   f.receivers.samples.resize(1);
@@ -72,10 +76,22 @@ double MeanSegmentElement(Fixture& f, const EyeSegment& seg, const VirtualLight&
   LightingMatrix m(*f.scene, f.receivers, f.lights, opt);
   EXPECT_EQ(m.rows(), size_t(copies));
   MatrixCounters c;
-  double sum = 0;
-  for (int i = 0; i < copies; ++i) sum += double(m.Element(uint32_t(i), 0, &c).g);
+  double sum = 0, sum2 = 0;
+  for (int i = 0; i < copies; ++i) {
+    const double v = double(m.Element(uint32_t(i), 0, &c).g);
+    sum += v;
+    sum2 += v * v;
+  }
   EXPECT_GT(c.transmittance_evals, 0u);
-  return sum / copies;
+  const double mean = sum / copies;
+  return {mean, std::sqrt(std::max(sum2 / copies - mean * mean, 0.0) / copies)};
+}
+
+// Within 4 standard errors of the quadrature (plus 0.1% for float arithmetic against the double
+// quadrature), and that precise: a bias of 1% cannot pass.
+void ExpectMatches(const MeanAndError& got, double expect) {
+  EXPECT_NEAR(got.mean, expect, 4 * got.error + 1e-3 * expect) << "got " << got.mean << " ± " << got.error;
+  EXPECT_LT(got.error, 0.0025 * expect) << got.error;
 }
 
 EyeSegment TestSegment() {
@@ -97,8 +113,7 @@ TEST(MediaElements, PointLightToSegment) {
   L.power = RGB(2.f);
   EyeSegment s = TestSegment();
   double expect = SegmentQuadrature(s, L.p, [](Vec3) { return 2.f; }, false, {});
-  double got = MeanSegmentElement(f, s, L, 512, 16);
-  EXPECT_NEAR(got, expect, 0.01 * expect);
+  ExpectMatches(MeanSegmentElement(f, s, L, 4096, 16), expect);
 }
 
 TEST(MediaElements, MediumVPLToSegment) {
@@ -114,8 +129,7 @@ TEST(MediaElements, MediumVPLToSegment) {
   EyeSegment s = TestSegment();
   auto intensity = [&](Vec3 w) { return 5.f * HenyeyGreenstein(Dot(L.wi, w), 0.7f); };
   double expect = SegmentQuadrature(s, L.p, intensity, false, {});
-  double got = MeanSegmentElement(f, s, L, 512, 16);
-  EXPECT_NEAR(got, expect, 0.01 * expect);
+  ExpectMatches(MeanSegmentElement(f, s, L, 4096, 16), expect);
 }
 
 TEST(MediaElements, DirectionalLightToSegment) {
@@ -126,8 +140,7 @@ TEST(MediaElements, DirectionalLightToSegment) {
   L.power = RGB(3.f);
   EyeSegment s = TestSegment();
   double expect = SegmentQuadrature(s, {}, [](Vec3) { return 3.f; }, true, -L.n);
-  double got = MeanSegmentElement(f, s, L, 512, 16);
-  EXPECT_NEAR(got, expect, 0.01 * expect);
+  ExpectMatches(MeanSegmentElement(f, s, L, 4096, 16), expect);
 }
 
 // Point → point: closed form, no integral; the medium VPL's phase, the BSDF and the shadow

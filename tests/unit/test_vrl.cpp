@@ -5,6 +5,7 @@
 // the VRL light tree, and the gather methods on a media scene with VRL columns.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <functional>
@@ -190,9 +191,25 @@ EyeSegment TestSegment() {
   return s;
 }
 
+// Gauss–Legendre on [a, b] with `panels` panels, plus `fine` more within `width` of `peak` (where
+// a near-singular integrand needs them).
+double GaussLegendrePeaked(const std::function<double(double)>& f, double a, double b, double peak, double width,
+                           int panels, int fine) {
+  const double lo = std::clamp(peak - width, a, b), hi = std::clamp(peak + width, a, b);
+  double sum = 0;
+  if (lo > a) sum += GaussLegendre(f, a, lo, std::max(1, int(panels * (lo - a) / (b - a)) + 1));
+  if (hi > lo) sum += GaussLegendre(f, lo, hi, fine);
+  if (b > hi) sum += GaussLegendre(f, hi, b, std::max(1, int(panels * (b - hi) / (b - a)) + 1));
+  return sum;
+}
+
 double SegmentQuadrature(const EyeSegment& seg, const VirtualLight& L, double clamp_distance) {
   const DVec eo = D(seg.o), ed = D(seg.d), lo = D(L.p), ld = D(L.n);
   const double dmin2 = clamp_distance * clamp_distance;
+  // The closest approach of the two lines: the outer integral's peak.
+  const DVec r = Sub(eo, lo);
+  const double bb = DotD(ed, ld), dd = DotD(ed, r), ee = DotD(ld, r), den = 1 - bb * bb;
+  const double t_peak = den > 1e-12 ? (bb * ee - dd) / den : 0.0;
   auto over_t = [&](double t) {
     DVec x = Along(eo, ed, t);
     auto over_s = [&](double s) {
@@ -204,9 +221,10 @@ double SegmentQuadrature(const EyeSegment& seg, const VirtualLight& L, double cl
              std::max(dist2, dmin2) * double(L.power.g) * std::exp(-kSigmaT * s) * kSigmaS *
              HG(-DotD(ld, w), double(L.g));
     };
-    return GaussLegendre(over_s, 0, double(L.length), 300);
+    // The inner integral peaks where y_s is closest to x_t.
+    return GaussLegendrePeaked(over_s, 0, double(L.length), DotD(Sub(x, lo), ld), 0.2, 300, 400);
   };
-  return GaussLegendre(over_t, 0, double(seg.length), 300);
+  return GaussLegendrePeaked(over_t, 0, double(seg.length), t_peak, 0.2, 300, 400);
 }
 
 struct SegmentCase {
