@@ -109,8 +109,9 @@ size_t SharpMaterials(const Scene& scene) {
   return n;
 }
 
-int CameraPathsFor(const Scene& scene, const Effects& effects) {
-  return effects.area_lights || effects.environment || SharpMaterials(scene) > 0 ? kDefaultCameraPaths : 0;
+int CameraPathsFor(const Scene& scene, const Effects& effects, bool media_direct) {
+  if (effects.area_lights || effects.environment || SharpMaterials(scene) > 0) return kDefaultCameraPaths;
+  return media_direct ? kDefaultMediaCameraPaths : 0;
 }
 
 // The light tree (when the method needs one) and the matrix over the plan's receivers and lights.
@@ -137,9 +138,13 @@ Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, Ph
   SlicingOptions slicing;
   slicing.rows_per_slice = size_t(params.GetInt("rows_per_slice", 800, 1, 1 << 24));
   slicing.seed = settings.seed;
-  // Media rows and columns (eye segments, medium VPLs): h split points per eye ray (Huo 2016:
-  // 16) and samples per segment element.
-  const int segments_per_ray = int(params.GetInt("segments_per_ray", 16, 0, 1024));
+  // Media rows: eye segments of equal in-scattering weight, h + 1 per piece light cannot cross
+  // (receivers.h, AppendEyeSegments). Huo 2016 cuts every eye ray at h = 16 points; here h = 0
+  // (one row per medium piece, trimmed to the density) renders the media scenes as fast at equal
+  // error with fewer rows (docs/methods/media-elements.md).
+  const int segments_per_ray = int(params.GetInt("segments_per_ray", 0, 0, 1024));
+  // VRL columns: pieces of equal in-scattering weight per VRL (light_generation.h).
+  const int vrl_pieces = int(params.GetInt("vrl_pieces", 4, 1, 1024));
   // Eye-segment slices (Huo 2016, Sec. 4; segment_slicing.h): K = 0.008 × eye rays, clamped to
   // an average of [5/8, 5/4] × segment_rows_per_slice segments per slice (500–1000 for the
   // default 800, the range the paper reports); segment_refine=1 splits segments across slice
@@ -231,8 +236,9 @@ Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, Ph
   ropt.seed = settings.seed;
   ropt.max_depth = scene.hints().max_depth;
   ropt.segments_per_ray = media_rows ? segments_per_ray : -1;
+  ropt.media_direct_samples = media_rows ? plan.matrix_options.media_direct_samples : 0;
   ropt.sharp_samples = plan.matrix_options.sharp_samples;
-  ropt.camera_paths = camera_paths >= 0 ? camera_paths : CameraPathsFor(scene, plan.effects);
+  ropt.camera_paths = camera_paths >= 0 ? camera_paths : CameraPathsFor(scene, plan.effects, ropt.media_direct_samples > 0);
   *plan.receivers = GenerateReceivers(scene, filter_sampler, ropt);
   timer.End("receivers");
   // Segment slices before anything refers to the segments: refinement may split some of them.
@@ -245,6 +251,7 @@ Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, Ph
   lopt.max_depth = scene.hints().max_depth;
   lopt.seed = settings.seed;
   lopt.medium_lights = media_rows ? media_lights : MediumLights::kNone;
+  lopt.vrl_pieces = vrl_pieces;
   *plan.lights = GenerateLights(scene, lopt);
   plan.light_options = lopt;
   timer.End("lights");
@@ -416,6 +423,7 @@ nlohmann::json MakeStats(const Plan& plan, const RenderSettings& settings,
   s["effects"] = plan.effects.Names();
   s["lights"] = {{"vpl", ls.area_vpls + ls.surface_vpls},
                  {"vrl", ls.vrls},
+                 {"vrl_flights", ls.vrl_flights},
                  {"medium_vpl", ls.medium_vpls},
                  {"total", plan.lights->size()},
                  {"requested", settings.lights},
@@ -432,9 +440,11 @@ nlohmann::json MakeStats(const Plan& plan, const RenderSettings& settings,
                     {"camera_paths", plan.receivers->stats.camera_paths},
                     {"camera_pilot_paths", plan.receivers->stats.camera_pilot_paths},
                     {"camera_active_pixels", plan.receivers->stats.camera_active_pixels},
+                    {"media_direct_samples", plan.receivers->stats.media_direct_samples},
                     {"specular_bounces", plan.receivers->stats.specular_bounces},
                     {"escaped", plan.receivers->stats.escaped},
                     {"transmittance_evals", plan.receivers->stats.transmittance_evals}};
+  s["media"] = {{"tracks", plan.matrix->medium_tracks()}, {"track_knots", plan.matrix->medium_track_knots()}};
   s["slices"] = plan.tasks.size();
   s["tasks"] = outcome.tasks;
   const size_t nrows = plan.matrix->rows();

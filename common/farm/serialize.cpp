@@ -156,7 +156,7 @@ Bytes SerializeLightSet(const LightSet& set) {
   WriteHeader(w, Kind::kLightSet);
   const LightSetStats& s = set.stats;
   for (size_t v : {s.area_vpls, s.surface_vpls, s.point_lights, s.directional_lights,
-                   s.particle_paths, s.caustic_vpls, s.glossy_vpls, s.medium_vpls, s.vrls})
+                   s.particle_paths, s.caustic_vpls, s.glossy_vpls, s.medium_vpls, s.vrls, s.vrl_flights})
     w.U64(v);
   w.U64(set.lights.size());
   for (const VirtualLight& l : set.lights) {
@@ -183,7 +183,7 @@ LightSet DeserializeLightSet(ByteView bytes) {
   LightSet set;
   LightSetStats& s = set.stats;
   for (size_t* v : {&s.area_vpls, &s.surface_vpls, &s.point_lights, &s.directional_lights,
-                    &s.particle_paths, &s.caustic_vpls, &s.glossy_vpls, &s.medium_vpls, &s.vrls})
+                    &s.particle_paths, &s.caustic_vpls, &s.glossy_vpls, &s.medium_vpls, &s.vrls, &s.vrl_flights})
     *v = size_t(r.U64());
   set.lights.resize(r.Count(kLightBytes));
   for (VirtualLight& l : set.lights) {
@@ -218,7 +218,7 @@ Bytes SerializeReceiverSet(const ReceiverSet& set) {
   w.U32(uint32_t(set.spp));
   for (size_t v : {set.stats.camera_rays, set.stats.specular_bounces, set.stats.escaped,
                    set.stats.nonfinite_rays, set.stats.camera_paths, set.stats.camera_pilot_paths,
-                   set.stats.camera_active_pixels})
+                   set.stats.camera_active_pixels, set.stats.media_direct_samples})
     w.U64(v);
   w.U64(set.samples.size());
   for (const CameraSample& c : set.samples) {
@@ -264,7 +264,7 @@ ReceiverSet DeserializeReceiverSet(ByteView bytes) {
   set.spp = int(spp);
   for (size_t* v : {&set.stats.camera_rays, &set.stats.specular_bounces, &set.stats.escaped,
                     &set.stats.nonfinite_rays, &set.stats.camera_paths, &set.stats.camera_pilot_paths,
-                    &set.stats.camera_active_pixels})
+                    &set.stats.camera_active_pixels, &set.stats.media_direct_samples})
     *v = size_t(r.U64());
   const uint64_t pixels = uint64_t(width) * height;
   set.samples.resize(r.Count(kSampleBytes));

@@ -53,13 +53,20 @@
 //     draws K near lights by systematic sampling ∝ NearBound (power, distance, phase functions)
 //     and adds A_ij / (K q_ij) per draw, unbiased, with K entries per row whatever the number of
 //     near lights; it trades the near columns' exactness for noise (measured in the same doc).
+//  6. Eye-segment slices take σ = 0.02 and β = 0.05 unless sigma / beta are given. Their rows hold
+//     only the light the particle paths carry (the emitters' single scattering is the camera
+//     side's, docs/rendering.md), so the slice's energy that Eq. 16 and 17 compare against is a
+//     fraction of what it is with the emitters' columns; with the surface defaults the cut and
+//     the basis grew ten- to twenty-fold on the cloud for an error that the looser thresholds
+//     match (docs/methods/media-elements.md).
 //
 // Exact limit: with rho=1 (Ω = every row), sigma=0 (a column that loses anything on Ω is sampled
 // fully) and beta=0 (every node refined to ≤ K lights, each evaluated once), every light's column
 // is either in span(U) to rounding or added to U and projected exactly, so the row sums equal
 // brute force's up to rounding (tests/unit/test_adaptive_completion.cpp).
 //
-// Parameters (--param): columns (K, 10), rho (0.1), sigma (0.005), beta (0.01), omega_per_basis
+// Parameters (--param): columns (K, 10), rho (0.1), sigma (0.005; 0.02 on eye-segment slices, see
+// 6), beta (0.01; 0.05 there), omega_per_basis
 // (2; see 1b), rank_tolerance (0.1; see 1d), near_distance (0.1; 0 turns it off; see 5),
 // near_samples (0: near columns exact; see 5). Randomness: Ω from (seed, stage, task, kRowSample,
 // draw number), a node's columns from (seed, stage, task, kColumnSample, node index), a row's near
@@ -93,6 +100,8 @@ struct AdaptiveCompletionSettings {
   double rho = 0.1;             // |Ω| = ⌊ρm⌋ rows, Sec. 5.1.1
   double sigma = 0.005;         // Eq. 16, Sec. 6.2
   double beta = 0.01;           // Eq. 17
+  // On eye-segment slices (see 6): the defaults when sigma / beta are not given.
+  double segment_sigma = 0.02, segment_beta = 0.05;
   double omega_per_basis = 2;   // |Ω| ≥ this · k rows (deviation 1b)
   double rank_tolerance = 0.1;  // of U_Ω, relative to its largest pivot (see 1d)
   double near_distance = 0.1;   // near lights: within this × the slice's diagonal (see 5)
@@ -697,7 +706,12 @@ class AdaptiveCompletionGather final : public GatherMethod {
           prefix[i] + (near[order[i]] ? 0.0
                                       : std::max(0.0, double(ctx.matrix.lights().lights[order[i]]
                                                                  .power.Luminance())));
-    SliceSolver(ctx.matrix, tree, prefix, near, task, s_, &result).Run();
+    AdaptiveCompletionSettings s = s_;
+    if (task.rows.front() >= ctx.matrix.point_rows()) {
+      s.sigma = s.segment_sigma;
+      s.beta = s.segment_beta;
+    }
+    SliceSolver(ctx.matrix, tree, prefix, near, task, s, &result).Run();
     return result;
   }
 
@@ -713,6 +727,9 @@ std::unique_ptr<GatherMethod> CreateAdaptiveCompletionGather(const OptionMap& pa
   s.rho = params.GetDouble("rho", 0.1, 1e-6, 1.0);
   s.sigma = params.GetDouble("sigma", 0.005, 0.0, 1e6);
   s.beta = params.GetDouble("beta", 0.01, 0.0, 1e6);
+  // Given, sigma and beta hold for every slice; else eye-segment slices have their own (see 6).
+  s.segment_sigma = params.Has("sigma") ? s.sigma : s.segment_sigma;
+  s.segment_beta = params.Has("beta") ? s.beta : s.segment_beta;
   s.omega_per_basis = params.GetDouble("omega_per_basis", 2.0, 0.0, 1e6);
   s.rank_tolerance = params.GetDouble("rank_tolerance", 0.1, 0.0, 1.0);
   s.near_distance = params.GetDouble("near_distance", 0.1, 0.0, 1e6);

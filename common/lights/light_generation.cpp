@@ -7,6 +7,7 @@
 #include <stdexcept>
 
 #include "common/lights/emitters.h"
+#include "common/scene/medium_track.h"
 #include "common/scene/phase.h"
 #include "common/util/rng.h"
 #include "common/util/sampling.h"
@@ -25,11 +26,13 @@ float ExitDistance(const Ray& ray, Vec3 center, float radius) {
 }
 
 // Traces one particle path and appends its surface VPLs (power not yet divided by #paths).
-void TraceParticlePath(const Scene& scene, const EmitterRef& e, float p_select, Vec3 center,
-                       float radius, int max_depth, MediumLights medium_lights, Rng& rng,
-                       std::vector<VirtualLight>* out) {
+// Returns the lights it made towards the budget: a VRL counts once, however many pieces it has.
+size_t TraceParticlePath(const Scene& scene, const EmitterRef& e, float p_select, Vec3 center,
+                         float radius, int max_depth, MediumLights medium_lights, int vrl_pieces, Rng& rng,
+                         std::vector<VirtualLight>* out) {
+  size_t made = 0;
   EmittedRay em = SampleEmittedRay(scene, e, center, radius, rng);
-  if (!em.valid) return;
+  if (!em.valid) return made;
   RGB beta = em.beta / p_select;
   const float beta0 = std::max(beta.Max(), 1e-30f);
   Ray ray = em.ray;
@@ -63,13 +66,13 @@ void TraceParticlePath(const Scene& scene, const EmitterRef& e, float p_select, 
           // The scattering event on the VRL counts as a bounce of the light path.
           v.depth = uint8_t(std::min(bounces + 1, 255));
           v.caustic = through_specular;
-          out->push_back(v);
+          made += AppendVrlPieces(med, v, vrl_pieces, out);
         }
       }
       MediumRay mray{ray.o, ray.d, found ? hit.t : kInfinity};
       FreePathSample fp = med.SampleFreePath(mray, rng);
       beta *= fp.weight;
-      if (!beta.IsFinite() || beta.IsBlack()) return;
+      if (!beta.IsFinite() || beta.IsBlack()) return made;
       if (fp.scattered) {
         ++bounces;
         Vec3 x = ray.o + ray.d * fp.t;
@@ -87,28 +90,31 @@ void TraceParticlePath(const Scene& scene, const EmitterRef& e, float p_select, 
           v.medium = int16_t(medium);
           v.depth = uint8_t(std::min(bounces, 255));
           v.caustic = through_specular;
-          if (IsFinite(x)) out->push_back(v);
+          if (IsFinite(x)) {
+            out->push_back(v);
+            ++made;
+          }
         }
-        if (bounces >= max_depth - 1) return;
+        if (bounces >= max_depth - 1) return made;
         // HG phase sampling: the weight f_p/pdf is 1.
         Vec3 wnew = SampleHenyeyGreenstein(ray.d, med.g(), rng.Uniform(), rng.Uniform(), nullptr);
         if (bounces > 2) {
           float q = std::min(1.f, beta.Max() / beta0);
-          if (rng.Uniform() >= q) return;
+          if (rng.Uniform() >= q) return made;
           beta = beta / q;
         }
         ray = {x, wnew, kInfinity};
-        if (!IsFinite(ray.o) || !IsFinite(ray.d)) return;
+        if (!IsFinite(ray.o) || !IsFinite(ray.d)) return made;
         continue;
       }
     }
-    if (!found) return;
+    if (!found) return made;
     const Shape& shape = scene.shapes()[hit.shape];
     const Material& m = scene.materials()[shape.material];
     uint32_t flags = MaterialFlags(m);
     Vec3 wo = -ray.d;
     if (flags == 0) {  // interface: no surface, continue straight through into the next medium
-      if (++passthrough > 64) return;
+      if (++passthrough > 64) return made;
       medium = scene.MediumAfter(hit, ray.d, medium);
       ray.o = OffsetRayOrigin(hit.p, hit.ng, ray.d);
       continue;
@@ -126,24 +132,45 @@ void TraceParticlePath(const Scene& scene, const EmitterRef& e, float p_select, 
       v.depth = uint8_t(std::min(bounces, 255));
       v.caustic = through_specular;
       out->push_back(v);
+      ++made;
     }
-    if (bounces >= max_depth - 1) return;  // no later vertex could reach a receiver in budget
+    if (bounces >= max_depth - 1) return made;  // no later vertex could reach a receiver in budget
     const std::optional<ParticleBounce> bounce = ScatterParticle(m, hit, wo, rng, &beta);
-    if (!bounce) return;
+    if (!bounce) return made;
     const Vec3 wi = bounce->wi;
     through_specular = through_specular || bounce->specular;
     medium = scene.MediumAfter(hit, wi, medium);
     // Russian roulette on throughput relative to the emitted flux.
     if (bounces > 2) {
       float q = std::min(1.f, beta.Max() / beta0);
-      if (rng.Uniform() >= q) return;
+      if (rng.Uniform() >= q) return made;
       beta = beta / q;
     }
     ray = {OffsetRayOrigin(hit.p, hit.ng, wi), wi, kInfinity};
   }
+  return made;
 }
 
 }  // namespace
+
+bool AppendVrlPieces(const Medium& med, const VirtualLight& vrl, int pieces, std::vector<VirtualLight>* out) {
+  const MediumTrack track(med, {vrl.p, vrl.n, vrl.length});
+  if (track.empty()) return false;
+  const float crossing = track.TransmittanceToEnd().Average();
+  const int n = std::clamp(int(std::ceil(float(pieces) * (1.f - crossing))), 1, std::max(pieces, 1));
+  float s0 = track.Quantile(0.f);
+  for (int k = 0; k < n; ++k) {
+    const float s1 = k + 1 == n ? track.support_end() : track.Quantile(float(k + 1) / float(n));
+    if (!(s1 > s0)) continue;
+    VirtualLight piece = vrl;
+    piece.p = vrl.p + vrl.n * s0;
+    piece.length = s1 - s0;
+    piece.power = vrl.power * track.At(s0).tr;
+    out->push_back(piece);
+    s0 = s1;
+  }
+  return true;
+}
 
 std::optional<ParticleBounce> ScatterParticle(const Material& m, const SurfaceHit& hit, Vec3 wo, Rng& rng,
                                               RGB* beta) {
@@ -250,6 +277,7 @@ LightSet GenerateLights(const Scene& scene, const LightGenerationOptions& opt) {
   // Give up if paths keep escaping: a scene that never bounces light yields no VPLs.
   const size_t max_paths = std::max<size_t>(indirect_budget * 64, 1 << 20);
   std::vector<std::vector<VirtualLight>> per_path(batch);
+  std::vector<size_t> per_path_made(batch);
   size_t paths = 0, produced = 0;
   std::vector<VirtualLight> indirect_vpls;
   while (produced < indirect_budget && paths < max_paths) {
@@ -259,16 +287,19 @@ LightSet GenerateLights(const Scene& scene, const LightGenerationOptions& opt) {
       Rng rng(HashSeed({opt.seed, uint64_t(RngStream::kParticlePath), index}));
       float p_select = 0;
       const size_t ei = picker.Pick(rng.Uniform(), &p_select);
-      TraceParticlePath(scene, emitters[ei], p_select, center, radius, opt.max_depth,
-                        opt.medium_lights, rng, &per_path[k]);
+      per_path_made[k] = TraceParticlePath(scene, emitters[ei], p_select, center, radius, opt.max_depth,
+                                           opt.medium_lights, opt.vrl_pieces, rng, &per_path[k]);
     });
     // Consume whole paths in index order so the result is independent of scheduling.
     for (size_t k = 0; k < batch && produced < indirect_budget; ++k) {
       ++paths;
+      size_t points = 0;  // lights that are not VRL pieces: the rest of made are VRL flights
       for (VirtualLight& v : per_path[k]) {
+        points += !v.IsRay();
         indirect_vpls.push_back(v);
-        ++produced;
       }
+      produced += per_path_made[k];
+      set.stats.vrl_flights += per_path_made[k] - points;
     }
   }
   set.stats.particle_paths = paths;

@@ -27,6 +27,9 @@ struct LightGenerationOptions {
   // Lights left inside media (only for gather methods that evaluate media rows). VPLs and VRLs
   // are two estimates of the same light, so a path leaves one kind or the other, never both.
   MediumLights medium_lights = MediumLights::kNone;
+  // VRLs are cut into up to this many pieces of equal in-scattering weight, each a column
+  // (light_generation.cpp, AppendVrlPieces); a VRL counts once towards target_lights.
+  int vrl_pieces = 1;
 };
 
 // Deterministic for a given seed whatever the thread count: every path and every emitter sample
@@ -40,6 +43,14 @@ struct LightGenerationOptions {
 // scattering event or a VRL for each free flight (opt.medium_lights). Paths are traced until the indirect budget is met;
 // every VPL's power is divided by the number of paths started.
 LightSet GenerateLights(const Scene& scene, const LightGenerationOptions& opt);
+
+// Appends the columns of one VRL: pieces of equal in-scattering weight (MediumTrack), as many as
+// `pieces` where light cannot cross the medium along it and fewer, max(1, ⌈pieces·(1 − Tr)⌉),
+// where it can, each trimmed to where the density may scatter (Huo 2016, Sec. 3.2: VRL segments
+// are the columns). A piece [s_a, s_b] is itself a VRL from b + s_a·ψ whose flux is Φ·Tr(b→s_a),
+// so the pieces sum to the whole VRL. Returns false, appending nothing, when no light scatters
+// out anywhere along it (a flight through empty space). Deterministic.
+bool AppendVrlPieces(const Medium& med, const VirtualLight& vrl, int pieces, std::vector<VirtualLight>* out);
 
 // One bounce of a particle path (importance transport) at a surface: samples the BSDF from
 // wo (unit, back towards the light), multiplies beta by f·|cos|/pdf with the shading-normal

@@ -67,7 +67,8 @@ struct LightSetStats {
   size_t caustic_vpls = 0;  // surface VPLs whose path went through a specular interaction
   size_t glossy_vpls = 0;   // surface VPLs on materials with a glossy lobe
   size_t medium_vpls = 0;   // particle scattering events in media (kMediumVPL)
-  size_t vrls = 0;          // particle free flights through media (kVRL)
+  size_t vrls = 0;          // VRL columns (kVRL): pieces of the flights below
+  size_t vrl_flights = 0;   // particle free flights through media that scatter light (AppendVrlPieces)
 };
 
 struct LightSet {

@@ -9,6 +9,8 @@
 #include <embree3/rtcore.h>
 
 #include "common/lights/emitters.h"
+#include "common/scene/medium_track.h"
+#include "common/scene/phase.h"
 #include "common/util/rng.h"
 #include "common/util/sampling.h"
 
@@ -28,44 +30,9 @@ struct PathEnd {
   int specular_bounces = 0;
   bool escaped = false;
   size_t transmittance_evals = 0;
+  size_t media_direct_samples = 0;
   std::vector<EyeSegment> segments;
 };
-
-// Splits the camera ray piece [0, tmax] in `medium` into up to h + 1 eye segments at points
-// placed by delta tracking (their density follows σ_t). beta is the camera weight up to ray.o;
-// each segment's throughput adds the transmittance up to its start.
-void AddEyeSegments(const Medium& med, int medium, const Ray& ray, float tmax, RGB beta, int h,
-                    uint8_t depth, Rng& rng, PathEnd* end) {
-  // An unbounded piece (a ray leaving into an endless medium) is cut where any light left
-  // along it is negligible or, for an empty medium, where nothing is.
-  if (!std::isfinite(tmax)) {
-    float st = med.sigma_t().Max() * med.MaxDensity();
-    if (!(st > 0)) return;
-    tmax = 30.f / st;
-  }
-  float t = 0;
-  for (int k = 0; k <= h && t < tmax; ++k) {
-    float next = tmax;
-    if (k < h) {
-      FreePathSample fp = med.SampleFreePath({ray.o + ray.d * t, ray.d, tmax - t}, rng);
-      if (fp.scattered) next = std::min(tmax, t + std::max(fp.t, 0.f));
-    }
-    if (next > t) {
-      EyeSegment s;
-      s.o = ray.o + ray.d * t;
-      s.d = ray.d;
-      s.length = next - t;
-      s.throughput = beta;
-      s.medium = int16_t(medium);
-      s.depth = depth;
-      end->segments.push_back(s);
-      beta *= med.Transmittance({s.o, s.d, s.length}, rng);
-      ++end->transmittance_evals;
-      if (beta.IsBlack()) return;
-    }
-    t = next;
-  }
-}
 
 // One emitter sample of next-event estimation for the sharp lobe of the vertex at `hit`
 // (docs/rendering.md, "Sharp lobes"), given that the camera path chose the lobe (probability
@@ -102,12 +69,74 @@ RGB SharpLobeDirectLight(const Scene& scene, const EmitterSampler& lights, const
   return sum / float(count);
 }
 
+// What a camera path collects by itself besides the emission it sees, and what it leaves for the
+// matrix (docs/rendering.md, "Camera-side supersampling" and "Rows, columns and elements").
+struct CameraPathOptions {
+  int max_depth = 5;
+  // Emitter samples at a vertex that follows a sharp lobe, MIS-combined with the lobe's own
+  // sample (set when the scene has sharp lobes).
+  const EmitterSampler* sharp_lights = nullptr;
+  int sharp_samples = 1;
+  // Single scattering of the emitters' light along each medium piece of the path, by
+  // `media_samples` samples (DirectInScattering); eye-segment rows then gather only the lights
+  // particle paths left (set when media rows are on and the emitters' direct light in media is
+  // the camera's).
+  const EmitterSampler* media_lights = nullptr;
+  int media_samples = 0;
+  // Eye segments per opaque medium piece, minus one (AppendEyeSegments); -1: no segments.
+  int segments_per_ray = -1;
+};
+
+// A camera ray's piece [0, tmax] inside one medium, tabulated (an unbounded piece, a ray leaving
+// into an endless medium, is cut where any light left along it is negligible or, for an empty
+// medium, where nothing is).
+MediumTrack CameraPieceTrack(const Medium& med, const Ray& ray, float tmax) {
+  if (!std::isfinite(tmax)) {
+    const float st = med.sigma_t().Max() * med.MaxDensity();
+    tmax = st > 0 ? 30.f / st : 0.f;
+  }
+  return MediumTrack(med, {ray.o, ray.d, tmax});
+}
+
+// The emitters' light scattered once towards the camera along a camera ray's medium piece:
+//   ∫ Tr(0→t) σ_s(t) ∫ p_g(ω, −d) L_e(ω) Tr V dω dt,
+// by `count` samples t ∝ σ_s·Tr (the piece's track, stratified), each with one emitter sample
+// (next-event estimation, as the path tracer's at a medium vertex but without MIS: no phase
+// sample follows, so the emitter sample carries every direction).
+RGB DirectInScattering(const Scene& scene, const EmitterSampler& lights, const MediumTrack& track, const Ray& ray,
+                       int medium, int count, Rng& rng) {
+  if (track.empty() || count <= 0) return RGB(0.f);
+  const float g = scene.media()[size_t(medium)].g();
+  RGBAccum sum;
+  for (int k = 0; k < count; ++k) {
+    float pdf;
+    size_t where;
+    const float t = track.Sample(std::min((float(k) + rng.Uniform()) / float(count), 0x1.fffffep-1f), &pdf, &where);
+    const float u_pick = rng.Uniform();
+    const Vec2 u{rng.Uniform(), rng.Uniform()};
+    if (!(pdf > 0)) continue;
+    const MediumTrack::Point p = track.At(t, where);
+    if (p.sigma_s.IsBlack()) continue;
+    const Vec3 x = ray.o + ray.d * t;
+    const std::optional<LightSample> ls = lights.Sample(x, u_pick, u);
+    if (!ls) continue;
+    // Light travelling along -wi scatters into the camera ray's reverse direction -d.
+    const float phase = HenyeyGreenstein(Dot(ls->wi, ray.d), g);
+    if (!(phase > 0)) continue;
+    const RGB tr = LightSampleVisibility(scene, x, *ls, medium, rng);
+    if (tr.IsBlack()) continue;
+    sum.Add(p.sigma_s * p.tr * ls->L * tr * (phase / (ls->pdf * pdf * float(count))));
+  }
+  return sum.ToRGB();
+}
+
 // Follows a camera ray through specular (delta) interactions to its first non-specular vertex,
-// collecting the emission seen along the way. `lights` (set when the scene has sharp lobes):
-// at a vertex that follows a sharp lobe, emission is estimated by MIS of the lobe's sample
-// and an emitter sample.
-PathEnd TraceCameraPath(const Scene& scene, const EmitterSampler* lights, int sharp_samples, Ray ray,
-                        int max_depth, int segments_per_ray, Rng& rng) {
+// collecting the emission seen along the way, and what `opt` asks for: at a vertex that follows a
+// sharp lobe, emission by MIS of the lobe's sample and emitter samples; along medium pieces, eye
+// segments and the emitters' single scattering.
+PathEnd TraceCameraPath(const Scene& scene, const CameraPathOptions& opt, Ray ray, Rng& rng) {
+  const EmitterSampler* lights = opt.sharp_lights;
+  const int sharp_samples = opt.sharp_samples, max_depth = opt.max_depth;
   PathEnd end;
   RGB beta(1.f);
   int depth = 0, passthrough = 0;
@@ -123,10 +152,22 @@ PathEnd TraceCameraPath(const Scene& scene, const EmitterSampler* lights, int sh
     // Attenuation of the surface (and emission) seen at the end of this ray segment: an
     // unbiased transmittance estimate (closed form in homogeneous media).
     if (medium >= 0) {
-      if (segments_per_ray >= 0 && depth < max_depth)
-        AddEyeSegments(scene.media()[medium], medium, ray, found ? hit.t : kInfinity, beta,
-                       segments_per_ray, uint8_t(std::min(depth + 1, 255)), rng, &end);
-      beta *= scene.media()[medium].Transmittance({ray.o, ray.d, found ? hit.t : kInfinity}, rng);
+      const Medium& med = scene.media()[medium];
+      const float tmax = found ? hit.t : kInfinity;
+      if (depth < max_depth && (opt.segments_per_ray >= 0 || opt.media_lights)) {
+        // The scattering vertex on this piece would be the path's depth + 1.
+        const MediumTrack track = CameraPieceTrack(med, ray, tmax);
+        if (opt.segments_per_ray >= 0)
+          AppendEyeSegments(track, medium, ray, beta, opt.segments_per_ray, uint8_t(std::min(depth + 1, 255)),
+                            &end.segments);
+        if (opt.media_lights && !track.empty()) {
+          end.emitted += beta * DirectInScattering(scene, *opt.media_lights, track, ray, medium, opt.media_samples, rng);
+          end.media_direct_samples += size_t(opt.media_samples);
+        }
+        beta *= track.TransmittanceToEnd();
+      } else {
+        beta *= med.Transmittance({ray.o, ray.d, tmax}, rng);
+      }
       ++end.transmittance_evals;
       if (beta.IsBlack()) return end;
     }
@@ -217,7 +258,7 @@ Ray FilmRay(const Scene& scene, int x, int y, const FilterSample& fs, Rng& rng) 
 // geometry), so the estimate stays unbiased whatever they choose.
 class CameraSideActivity {
  public:
-  CameraSideActivity(const Scene& scene, const FilterSampler& filter, const EmitterSampler* sharp_lights,
+  CameraSideActivity(const Scene& scene, const FilterSampler& filter, const CameraPathOptions& paths,
                      const ReceiverOptions& opt, std::vector<ReceiverStats>* row_stats)
       : width_(scene.hints().width), height_(scene.hints().height) {
     const size_t npix = size_t(width_) * size_t(height_);
@@ -225,7 +266,7 @@ class CameraSideActivity {
     hi_.assign(npix, 0.f);
     hit_rate_.assign(npix, kInfinity);
     min_paths_.assign(npix, 0);
-    RunPilot(scene, filter, sharp_lights, opt, row_stats);
+    RunPilot(scene, filter, paths, opt, row_stats);
     MarkSmallEmitters(scene);
     MarkSpecularImages(scene, opt);
     GrantMarkedPaths(opt.camera_paths);
@@ -252,7 +293,7 @@ class CameraSideActivity {
  private:
   // kCameraPilotPaths paths per pixel on their own stream, never part of the image: the range
   // of their camera-side luminance (-1 for a non-finite one, which makes the block active).
-  void RunPilot(const Scene& scene, const FilterSampler& filter, const EmitterSampler* sharp_lights,
+  void RunPilot(const Scene& scene, const FilterSampler& filter, const CameraPathOptions& paths,
                 const ReceiverOptions& opt, std::vector<ReceiverStats>* row_stats) {
     tbb::parallel_for(0, height_, [&](int y) {
       ReceiverStats& st = (*row_stats)[y];
@@ -265,7 +306,7 @@ class CameraSideActivity {
           ++st.camera_pilot_paths;
           float v = 0;
           if (IsFinite(ray.o) && IsFinite(ray.d))
-            v = TraceCameraPath(scene, sharp_lights, 1, ray, opt.max_depth, -1, rng).emitted.Luminance();
+            v = TraceCameraPath(scene, paths, ray, rng).emitted.Luminance();
           if (!std::isfinite(v)) v = -1;
           lo = std::min(lo, v);
           hi = std::max(hi, v);
@@ -528,9 +569,9 @@ class CameraSideActivity {
 // Film::Resolve divides Σ w (E + G) by Σ w over the receiver samples, so giving each of them the
 // filter-weighted mean Ē over all the pixel's paths resolves to Ē + Σ w G / Σ w: two unbiased
 // estimates of two disjoint sets of paths (a path ends where a receiver would start).
-void AddCameraPaths(const Scene& scene, const FilterSampler& filter, const EmitterSampler* sharp_lights,
-                    const ReceiverOptions& opt, int paths, int x, int y, uint32_t scramble0, uint32_t scramble1,
-                    Rng& rng, std::span<CameraSample> samples, ReceiverStats* st) {
+void AddCameraPaths(const Scene& scene, const FilterSampler& filter, const CameraPathOptions& path_options,
+                    int paths, int x, int y, uint32_t scramble0, uint32_t scramble1, Rng& rng,
+                    std::span<CameraSample> samples, ReceiverStats* st) {
   double sum_w = 0, receiver_w = 0, sum[3] = {0, 0, 0};
   auto add = [&](float w, RGB e) {
     if (!e.IsFinite() || !std::isfinite(w)) return;  // dropped, as Film drops such a sample
@@ -553,7 +594,9 @@ void AddCameraPaths(const Scene& scene, const FilterSampler& filter, const Emitt
       add(fs.weight, RGB(0.f));
       continue;
     }
-    add(fs.weight, TraceCameraPath(scene, sharp_lights, 1, ray, opt.max_depth, -1, rng).emitted);
+    const PathEnd end = TraceCameraPath(scene, path_options, ray, rng);
+    st->media_direct_samples += end.media_direct_samples;
+    add(fs.weight, end.emitted);
   }
   // A pixel whose receiver weights cancel has no defined value either way.
   if (sum_w == 0 || receiver_w == 0) return;
@@ -562,6 +605,34 @@ void AddCameraPaths(const Scene& scene, const FilterSampler& filter, const Emitt
 }
 
 }  // namespace
+
+RGB AppendEyeSegments(const Medium& med, int medium, const Ray& ray, float tmax, RGB beta, int h,
+                      uint8_t depth, std::vector<EyeSegment>* out) {
+  const MediumTrack track = CameraPieceTrack(med, ray, tmax);
+  AppendEyeSegments(track, medium, ray, beta, h, depth, out);
+  return track.TransmittanceToEnd();
+}
+
+void AppendEyeSegments(const MediumTrack& track, int medium, const Ray& ray, RGB beta, int h, uint8_t depth,
+                       std::vector<EyeSegment>* out) {
+  if (track.empty()) return;
+  const float crossing = track.TransmittanceToEnd().Average();
+  const int n = std::clamp(int(std::ceil(float(h + 1) * (1.f - crossing))), 1, h + 1);
+  float t0 = track.Quantile(0.f);
+  for (int k = 0; k < n; ++k) {
+    const float t1 = k + 1 == n ? track.support_end() : track.Quantile(float(k + 1) / float(n));
+    if (!(t1 > t0)) continue;
+    EyeSegment s;
+    s.o = ray.o + ray.d * t0;
+    s.d = ray.d;
+    s.length = t1 - t0;
+    s.throughput = beta * track.At(t0).tr;
+    s.medium = int16_t(medium);
+    s.depth = depth;
+    out->push_back(s);
+    t0 = t1;
+  }
+}
 
 std::unique_ptr<Filter> MakePixelFilter(const RenderHints& h) {
   FilterShape shape;
@@ -593,10 +664,28 @@ ReceiverSet GenerateReceivers(const Scene& scene, const FilterSampler& filter,
       break;
     }
   if (sharp_lights && sharp_lights->empty()) sharp_lights.reset();
+  // The emitters' single scattering in media, on the camera side (ReceiverOptions::media_direct_samples).
+  std::unique_ptr<EmitterSampler> media_lights;
+  if (opt.segments_per_ray >= 0 && opt.media_direct_samples > 0 && scene.has_media()) {
+    media_lights = std::make_unique<EmitterSampler>(scene);
+    if (media_lights->empty()) media_lights.reset();
+  }
+  // The receiver samples cut eye segments and take sharp_samples emitter samples at sharp
+  // vertices; camera paths and the pilot only collect (one emitter sample per sharp vertex).
+  CameraPathOptions receiver_paths;
+  receiver_paths.max_depth = opt.max_depth;
+  receiver_paths.sharp_lights = sharp_lights.get();
+  receiver_paths.sharp_samples = opt.sharp_samples;
+  receiver_paths.media_lights = media_lights.get();
+  receiver_paths.media_samples = opt.media_direct_samples;
+  receiver_paths.segments_per_ray = opt.segments_per_ray;
+  CameraPathOptions camera_only = receiver_paths;
+  camera_only.sharp_samples = 1;
+  camera_only.segments_per_ray = -1;
 
   // Camera-side supersampling: which pixels get camera paths.
   std::optional<CameraSideActivity> camera_side;
-  if (opt.camera_paths > 0) camera_side.emplace(scene, filter, sharp_lights.get(), opt, &row_stats);
+  if (opt.camera_paths > 0) camera_side.emplace(scene, filter, camera_only, opt, &row_stats);
 
   tbb::parallel_for(0, set.height, [&](int y) {
     ReceiverStats& st = row_stats[y];
@@ -619,14 +708,14 @@ ReceiverSet GenerateReceivers(const Scene& scene, const FilterSampler& filter,
           ++st.nonfinite_rays;
           continue;
         }
-        PathEnd end = TraceCameraPath(scene, sharp_lights.get(), opt.sharp_samples, ray, opt.max_depth,
-                                      opt.segments_per_ray, rng);
+        PathEnd end = TraceCameraPath(scene, receiver_paths, ray, rng);
         for (EyeSegment& seg : end.segments) seg.sample = uint32_t(index);
         segments[index] = std::move(end.segments);
         cs.emitted = end.emitted;
         st.specular_bounces += end.specular_bounces;
         st.escaped += end.escaped;
         st.transmittance_evals += end.transmittance_evals;
+        st.media_direct_samples += end.media_direct_samples;
         if (end.has_point) {
           end.point.sample = uint32_t(index);
           points[index] = end.point;
@@ -636,8 +725,7 @@ ReceiverSet GenerateReceivers(const Scene& scene, const FilterSampler& filter,
       if (const int paths = camera_side ? camera_side->paths(x, y, opt.camera_paths) : 0; paths > 0) {
         ++st.camera_active_pixels;
         const std::span<CameraSample> pixel_samples(set.samples.data() + size_t(pixel) * spp, size_t(spp));
-        AddCameraPaths(scene, filter, sharp_lights.get(), opt, paths, x, y, scramble0, scramble1, rng, pixel_samples,
-                       &st);
+        AddCameraPaths(scene, filter, camera_only, paths, x, y, scramble0, scramble1, rng, pixel_samples, &st);
       }
     }
   });
@@ -663,6 +751,7 @@ ReceiverSet GenerateReceivers(const Scene& scene, const FilterSampler& filter,
     set.stats.camera_paths += st.camera_paths;
     set.stats.camera_pilot_paths += st.camera_pilot_paths;
     set.stats.camera_active_pixels += st.camera_active_pixels;
+    set.stats.media_direct_samples += st.media_direct_samples;
   }
   return set;
 }

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "common/image/filter.h"
+#include "common/scene/medium_track.h"
 #include "common/scene/scene.h"
 
 namespace lightfarm {
@@ -54,6 +55,7 @@ struct ReceiverStats {
   size_t camera_paths = 0;         // camera-side paths traced besides the receiver samples
   size_t camera_pilot_paths = 0;   // pilot paths (not in the image)
   size_t camera_active_pixels = 0; // pixels that got camera_paths more paths
+  size_t media_direct_samples = 0; // samples of the emitters' single scattering (media_direct_samples)
 };
 
 struct ReceiverSet {
@@ -68,9 +70,16 @@ struct ReceiverOptions {
   int spp = 1;
   uint64_t seed = 0;
   int max_depth = 5;
-  // Eye rays through media become h + 1 segments split at h points placed by delta tracking
-  // (Huo 2016: h = 16). -1: no segments (the camera ray is only attenuated).
+  // Eye rays through media become segments of equal in-scattering weight, h + 1 where light
+  // cannot cross the medium (Huo 2016: h = 16 points per ray), fewer where it can (receivers.cpp,
+  // AddEyeSegments). -1: no segments (the camera ray is only attenuated).
   int segments_per_ray = -1;
+  // With eye segments: the emitters' single scattering along each camera path's medium pieces is
+  // estimated on the camera side with this many samples per piece (t ∝ σ_s·Tr, one emitter sample
+  // each), supersampled like the rest of the camera side, and eye-segment rows gather only the
+  // lights particle paths left (MatrixOptions::segment_emitter_columns). 0: the emitters' light
+  // in media is gathered from their columns by the eye segments.
+  int media_direct_samples = 0;
   // Emitter samples per sharp-lobe vertex (docs/rendering.md, "Sharp lobes"), MIS-combined with
   // the lobe's one sample.
   int sharp_samples = 8;
@@ -91,6 +100,8 @@ struct ReceiverOptions {
 // The default of --param camera_paths for a scene whose camera paths can collect light by
 // themselves (render_job.cpp, CameraPathsFor).
 inline constexpr int kDefaultCameraPaths = 256;
+// ... and for a scene whose only camera-side light is the emitters' single scattering in media.
+inline constexpr int kDefaultMediaCameraPaths = 64;
 inline constexpr int kCameraPilotPaths = 4;
 // An emissive shape whose image fits in this many pixels across activates its pixels without the
 // pilot (receivers.cpp).
@@ -109,6 +120,19 @@ inline constexpr double kMinMarkedPaths = 1 << 20;
 
 // The scene's pixel filter (PixelFilter directive, or the override the scene was built with).
 std::unique_ptr<Filter> MakePixelFilter(const RenderHints& hints);
+
+// Cuts the camera ray piece o + t·d, t ∈ [0, tmax], in `medium` into eye segments of equal
+// in-scattering weight (MediumTrack) and appends them: a piece light cannot cross into h + 1
+// (Huo 2016, Sec. 4.1: h = 16 points along every eye ray), one it crosses with probability Tr
+// into max(1, ⌈(h + 1)(1 − Tr)⌉), so rows are short where the medium is dense and slices can be
+// compact there. Each is trimmed to where the density may be non-zero; empty space makes none.
+// beta is the camera weight up to o; a segment's throughput is beta × the exact transmittance
+// to its start. Returns the transmittance of the whole piece. Deterministic (no random choice).
+RGB AppendEyeSegments(const Medium& med, int medium, const Ray& ray, float tmax, RGB beta, int h,
+                      uint8_t depth, std::vector<EyeSegment>* out);
+// The same cuts of a piece already tabulated (track along ray from ray.o).
+void AppendEyeSegments(const MediumTrack& track, int medium, const Ray& ray, RGB beta, int h, uint8_t depth,
+                       std::vector<EyeSegment>* out);
 
 // Deterministic: every pixel draws from its own hashed generator and scrambled Sobol points.
 ReceiverSet GenerateReceivers(const Scene& scene, const FilterSampler& filter,

@@ -176,8 +176,8 @@ TEST(Serialize, RejectsWrongKindVersionAndTrailingBytes) {
 TEST(Serialize, RejectsInvalidEnumsBoolsAndIndices) {
   LightSet set = SampleLights();
   Bytes b = SerializeLightSet(set);
-  // The kind byte of the first light: header 8 + stats 72 + count 8 + 5 vectors (60) + material 4.
-  const size_t kind_at = 8 + 72 + 8 + 60 + 4;
+  // The kind byte of the first light: header 8 + stats 80 + count 8 + 5 vectors (60) + material 4.
+  const size_t kind_at = 8 + 80 + 8 + 60 + 4;
   ASSERT_EQ(b[kind_at], uint8_t(VirtualLightKind::kAreaVPL));
   Bytes bad_kind = b;
   bad_kind[kind_at] = 9;
