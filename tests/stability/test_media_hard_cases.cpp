@@ -184,7 +184,9 @@ TEST(MediaHardCases, AllZeroGridIsNoMedium) {
 
 // One voxel of density 1e4 (σ_t = 2e4) in an 8³ grid of zeros: the pixels whose vertical rays
 // miss its footprint (trilinear interpolation spreads it over one voxel each way) keep the
-// floor's 0.5 (plus ~1e-4 the voxel scatters onto the floor); the ones through it lose the floor
+// floor's 0.5 plus what the voxel scatters onto the floor (`path`, 16k spp: 1e-4 to 1.1e-3; with
+// 300 lights the voxel holds a light path's vertex in about one light set in ten, and then that
+// one vertex carries all of it: up to ~4e-3 at seed 3); the ones through it lose the floor
 // and show only the light the voxel scatters back (albedo 0.5, isotropic: ~0.06); nothing is NaN
 // or brighter than the light allows. (Density 1e3 leaves the footprint's corners, at 1/16 of the
 // peak, half transparent.)
@@ -209,9 +211,9 @@ TEST(MediaHardCases, GridWithOneDenseVoxel) {
           EXPECT_LT(v, 0.25f) << method << " pixel " << x << "," << y;
         } else {
           ++outside;
-          // The voxel's scattered light (medium VPLs) adds a little to the floor, ~1e-4.
+          // The voxel's scattered light (medium VPLs) adds a little to the floor (see above).
           EXPECT_GE(v, 0.5f - 1e-5f) << method << " pixel " << x << "," << y;
-          EXPECT_LE(v, 0.5f + 2e-3f) << method << " pixel " << x << "," << y;
+          EXPECT_LE(v, 0.5f + 5e-3f) << method << " pixel " << x << "," << y;
         }
       }
     EXPECT_EQ(inside, 16) << method;
