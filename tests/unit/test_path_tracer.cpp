@@ -215,6 +215,9 @@ TEST(PathTracer, EmitterSampleDensityMatchesHitDensity) {
     SurfaceHit hit;
     if (!scene->Intersect({p, ls->wi, kInfinity}, &hit)) continue;
     if (Length(hit.p - ls->p_light) > 1e-3f) continue;  // the sampled point is hidden (back of the sphere)
+    // At grazing incidence dist²/cos is ill-conditioned in the normal: the geometric normal Embree
+    // reports and the sampled point's differ by ~1e-5 rad, which moves the density 0.2% at cos 0.005.
+    if (std::abs(Dot(hit.ng, ls->wi)) < 0.02f) continue;
     const int emitter = scene->shapes()[hit.shape].area_emitter;
     ASSERT_GE(emitter, 0);
     EXPECT_NEAR(sampler.PdfArea(uint32_t(emitter), p, hit), ls->pdf, 2e-3f * ls->pdf);
