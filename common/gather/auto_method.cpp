@@ -2,10 +2,12 @@
 //
 // Rows are tried in order; the first whose condition holds picks the first of its candidates the
 // registry knows, or (no candidates) the cheapest of its measured methods within the target.
-// A scene with media and no --param target_error renders with `path`: against the truth at equal
-// time no many-light method of this build beats it in media (docs/truth.md: on
-// volumetric-caustic adaptive-completion reached path's error in 12× path's time, on the cloud
-// path was 2.5× closer in 7% of the time), and brute force, which the 2% target would
+// A scene with media and no --param target_error is rendered the way that was closer to the truth
+// at equal time (docs/methods/media-elements.md, "The defaults against path"): with a caustic
+// path (a specular surface and indirect light: a volumetric caustic, which the path tracer's
+// next-event estimation cannot reach through glass) by `adaptive-completion`, whose light paths
+// carry it; else by `path` (on the cloud no light count of a many-light method reached path's
+// error at equal time: the clamp's bias and the near lights' cost). Brute force, which the 2% target would
 // pick, takes hours at a scene's own resolution. With a target, a scene with media chooses
 // between `adaptive-completion` (Huo 2016's media method, the one measured on media scenes) and
 // `brute`, exact: adaptive-completion when its worst measured rel_l2 there
@@ -74,6 +76,9 @@ struct Rule {
 
 const std::vector<Rule>& Rules() {
   static const std::vector<Rule> rules = {
+      {"media with caustics, equal time against the truth",
+       [](const Effects& e, size_t, bool target) { return e.media && e.caustics() && !target; },
+       {"adaptive-completion"}},
       {"media, equal time against the truth", [](const Effects& e, size_t, bool target) { return e.media && !target; },
        {"path"}},
       {"media", [](const Effects& e, size_t, bool) { return e.media; }, {}, true},
