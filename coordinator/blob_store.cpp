@@ -2,6 +2,9 @@
 
 #include <unistd.h>
 
+#include <spdlog/spdlog.h>
+
+#include <chrono>
 #include <filesystem>
 #include <stdexcept>
 
@@ -13,6 +16,7 @@ BlobStore::BlobStore(std::string dir, uint64_t max_blob_bytes)
     : dir_(std::move(dir)), max_blob_bytes_(max_blob_bytes) {
   fs::create_directories(dir_);
   fs::create_directories(dir_ + "/tmp");
+  fs::create_directories(dir_ + "/quarantine");
   // Temporary files of a previous run are garbage.
   std::error_code ec;
   for (const auto& e : fs::directory_iterator(dir_ + "/tmp", ec)) fs::remove(e.path(), ec);
@@ -28,9 +32,35 @@ std::string BlobStore::TempPath() {
   return dir_ + "/tmp/" + std::to_string(::getpid()) + "-" + std::to_string(temp_counter_++);
 }
 
+std::string BlobStore::Quarantine(const std::string& sha256, const std::string& got) const {
+  ++corrupted_;
+  // Several readers may find the same bad file: each moves what is there, under its own name.
+  const std::string to = dir_ + "/quarantine/" + sha256 + "-" +
+                         std::to_string(std::chrono::system_clock::now().time_since_epoch().count());
+  std::error_code ec;
+  fs::rename(Path(sha256), to, ec);
+  const std::string message = "blob " + sha256 + " is corrupted on the coordinator's disk (its bytes hash to " +
+                              got + "); quarantined as " + to;
+  spdlog::error("blob store: {}", message);
+  return message;
+}
+
+bool BlobStore::Verify(const std::string& sha256) const {
+  if (!Has(sha256)) return false;
+  std::string got;
+  try {
+    got = Sha256OfFile(Path(sha256));
+  } catch (const std::exception&) {
+    return false;  // removed meanwhile, or unreadable: not servable either way
+  }
+  if (got == sha256) return true;
+  Quarantine(sha256, got);
+  return false;
+}
+
 std::string BlobStore::Put(ByteView bytes) {
   std::string sha = Sha256Hex(bytes);
-  if (Has(sha)) return sha;
+  if (Verify(sha)) return sha;
   std::string tmp = TempPath();
   {
     std::ofstream f(tmp, std::ios::binary);
@@ -48,6 +78,8 @@ Bytes BlobStore::Get(const std::string& sha256) const {
   Bytes data(fs::file_size(Path(sha256)));
   f.read(reinterpret_cast<char*>(data.data()), std::streamsize(data.size()));
   if (!f) throw std::runtime_error("blob store: cannot read " + sha256);
+  const std::string got = Sha256Hex(data);
+  if (got != sha256) throw BlobCorrupted(Quarantine(sha256, got));
   return data;
 }
 

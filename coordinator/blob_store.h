@@ -1,17 +1,26 @@
 // Content-addressed blobs on disk: <dir>/<sha256>. Written to a temporary file and renamed, so a
-// crash never leaves a partial blob under its name. Thread-safe.
+// crash never leaves a partial blob under its name. A blob is checked against its name whenever
+// it is read: one whose bytes no longer hash to it (a bad disk, a hand edit) is moved to
+// <dir>/quarantine/ and is then missing, never served. Thread-safe.
 #pragma once
 
 #include <atomic>
 #include <cstdint>
 #include <fstream>
 #include <memory>
+#include <stdexcept>
 #include <string>
 
 #include "common/farm/serialize.h"
 #include "common/farm/content_hash.h"
 
 namespace lightfarm {
+
+// A blob whose bytes do not hash to its name; it has been quarantined (what() says where).
+class BlobCorrupted : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
 
 class BlobStore {
  public:
@@ -20,9 +29,17 @@ class BlobStore {
   bool Has(const std::string& sha256) const;
   std::string Path(const std::string& sha256) const { return dir_ + "/" + sha256; }
   uint64_t Size(const std::string& sha256) const;  // throws if missing
-  // Stores bytes, returns their hash (no-op when present).
+  // Stores bytes, returns their hash (no-op when present and intact; a corrupted copy is
+  // quarantined and replaced).
   std::string Put(ByteView bytes);
-  Bytes Get(const std::string& sha256) const;  // throws std::out_of_range when missing
+  // Throws std::out_of_range when missing, BlobCorrupted (after quarantining it) when its bytes
+  // do not hash to its name.
+  Bytes Get(const std::string& sha256) const;
+  // Re-hashes a stored blob: true when it is intact; false when it is missing or was corrupted
+  // (then quarantined, logged and counted). For readers that stream the file from Path().
+  bool Verify(const std::string& sha256) const;
+  // Blobs found corrupted and quarantined since the store opened.
+  uint64_t corrupted() const { return corrupted_; }
   uint64_t max_blob_bytes() const { return max_blob_bytes_; }
 
   // A streamed upload: Append chunks, then Commit checks size and hash.
@@ -44,9 +61,12 @@ class BlobStore {
 
  private:
   std::string TempPath();
+  // Moves a blob that failed its hash check out of the store; returns the error to report.
+  std::string Quarantine(const std::string& sha256, const std::string& got) const;
   std::string dir_;
   uint64_t max_blob_bytes_;
   std::atomic<uint64_t> temp_counter_{0};
+  mutable std::atomic<uint64_t> corrupted_{0};
 };
 
 }  // namespace lightfarm

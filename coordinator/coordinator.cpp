@@ -407,6 +407,12 @@ JobResult Coordinator::GetResult(const std::string& job_id) {
                                                    ", not done");
   if (!blobs_->Has(job.result_sha))
     throw FarmError(Code::kNotFound, "the result image of job " + job_id + " is missing from the blob store");
+  // Re-hashed before it is served: a result whose bytes changed on disk is quarantined and
+  // reported, never streamed as the job's image.
+  if (!blobs_->Verify(job.result_sha))
+    throw FarmError(Code::kDataLoss, "the result image of job " + job_id +
+                                         " is corrupted on the coordinator's disk (blob " + job.result_sha +
+                                         ", quarantined); render the job again");
   return JobResult{job.stats_json, blobs_->Path(job.result_sha)};
 }
 

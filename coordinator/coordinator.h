@@ -49,7 +49,7 @@ struct CoordinatorOptions {
 
 class FarmError : public std::runtime_error {
  public:
-  enum class Code { kInvalidArgument, kNotFound, kResourceExhausted, kFailedPrecondition, kUnavailable };
+  enum class Code { kInvalidArgument, kNotFound, kResourceExhausted, kFailedPrecondition, kUnavailable, kDataLoss };
   FarmError(Code code, const std::string& message) : std::runtime_error(message), code_(code) {}
   Code code() const { return code_; }
 

@@ -93,6 +93,7 @@ int HttpStatusOf(FarmError::Code code) {
     case FarmError::Code::kResourceExhausted: return 429;
     case FarmError::Code::kFailedPrecondition: return 409;
     case FarmError::Code::kUnavailable: return 503;
+    case FarmError::Code::kDataLoss: return 500;
   }
   return 500;
 }

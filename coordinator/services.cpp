@@ -23,6 +23,7 @@ grpc::Status ToStatus(const FarmError& e) {
     case C::kResourceExhausted: return {grpc::StatusCode::RESOURCE_EXHAUSTED, e.what()};
     case C::kFailedPrecondition: return {grpc::StatusCode::FAILED_PRECONDITION, e.what()};
     case C::kUnavailable: return {grpc::StatusCode::UNAVAILABLE, e.what()};
+    case C::kDataLoss: return {grpc::StatusCode::DATA_LOSS, e.what()};
   }
   return {grpc::StatusCode::INTERNAL, e.what()};
 }
@@ -531,6 +532,11 @@ class FarmServer::WorkerServiceImpl final : public v1::WorkerService::CallbackSe
     if (!c_.blobs().Has(req->sha256()))
       return new RejectWriteReactor<v1::BlobChunk>(
           grpc::Status(grpc::StatusCode::NOT_FOUND, "no blob " + req->sha256().substr(0, 80)));
+    // Checked against its name before it is streamed: a corrupted blob is quarantined (and the
+    // task that needs it fails, naming the corruption) instead of reaching a worker's cache.
+    if (!c_.blobs().Verify(req->sha256()))
+      return new RejectWriteReactor<v1::BlobChunk>(grpc::Status(
+          grpc::StatusCode::DATA_LOSS, "blob " + req->sha256() + " is corrupted on the coordinator's disk (quarantined)"));
     std::string sha = req->sha256();
     uint64_t size = c_.blobs().Size(sha);
     return new FileStreamReactor<v1::BlobChunk>(

@@ -95,6 +95,18 @@ void BlobCache::Adopt(const std::string& sha, const std::string& tmp_path) {
   Touch(sha, size);
 }
 
+void BlobCache::Forget(const std::string& sha) {
+  std::lock_guard lock(mu_);
+  auto it = entries_.find(sha);
+  if (it != entries_.end()) {
+    total_ -= it->second.first;
+    lru_.erase(it->second.second);
+    entries_.erase(it);
+  }
+  std::error_code ec;
+  fs::remove(Path(sha), ec);
+}
+
 // --- Worker -------------------------------------------------------------------------------------
 
 // What a job's tasks need: its plan, rebuilt from the coordinator's blobs (RebuildPlan).
@@ -203,7 +215,20 @@ void Worker::Run() {
 }
 
 std::string Worker::FetchBlob(const std::string& sha) {
-  if (cache_->Has(sha)) return cache_->Path(sha);
+  if (cache_->Has(sha)) {
+    // The cache is a directory anyone (a disk, a person) can change between tasks: a blob is
+    // used only while its bytes still hash to its name, else it is fetched again.
+    std::string got;
+    try {
+      got = Sha256OfFile(cache_->Path(sha));
+    } catch (const std::exception&) {
+    }
+    if (got == sha) return cache_->Path(sha);
+    spdlog::warn("cached blob {} is corrupted (its bytes hash to {}); fetching it again", sha,
+                 got.empty() ? "nothing: unreadable" : got);
+    ++cache_corrupted_;
+    cache_->Forget(sha);
+  }
   const std::string tmp = cache_->TempPath();
   {
     std::ofstream out(tmp, std::ios::binary);

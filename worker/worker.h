@@ -49,6 +49,8 @@ class BlobCache {
   std::string Path(const std::string& sha) const { return dir_ + "/" + sha; }
   // Moves a verified temporary file into the cache and evicts beyond the bound.
   void Adopt(const std::string& sha, const std::string& tmp_path);
+  // Drops a cached blob (one whose bytes no longer hash to its name).
+  void Forget(const std::string& sha);
   std::string TempPath();
 
  private:
@@ -101,6 +103,7 @@ class Worker {
   std::atomic<bool> stop_{false}, hand_back_{false};
   std::optional<v1::LeaseTaskResponse> next_lease_;  // leased with the last completion
   std::atomic<uint64_t> tasks_done_{0}, tasks_cancelled_{0};
+  std::atomic<uint64_t> cache_corrupted_{0};  // cached blobs found corrupted and fetched again
   std::mutex sleep_mu_;
   std::condition_variable sleep_cv_;
 };

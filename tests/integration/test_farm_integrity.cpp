@@ -1,0 +1,153 @@
+// Integrity: a blob whose bytes changed on disk (the coordinator's store, a worker's cache) is
+// never served or used. The coordinator quarantines it and says so; a worker fetches it again and
+// the job keeps its bits.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "coordinator/blob_store.h"
+#include "tests/integration/farm_harness.h"
+
+namespace lightfarm {
+namespace test_farm_integrity {
+
+using namespace lightfarm::testing;
+namespace fs = std::filesystem;
+
+// Flips one byte in the middle of a file, in place.
+void FlipByte(const std::string& path) {
+  std::fstream f(path, std::ios::in | std::ios::out | std::ios::binary);
+  ASSERT_TRUE(f) << path;
+  f.seekg(0, std::ios::end);
+  const std::streamoff size = f.tellg();
+  ASSERT_GT(size, 0) << path;
+  f.seekg(size / 2);
+  char c = 0;
+  f.read(&c, 1);
+  c = char(c ^ 0x5a);
+  f.seekp(size / 2);
+  f.write(&c, 1);
+}
+
+size_t FilesIn(const std::string& dir) {
+  size_t n = 0;
+  std::error_code ec;
+  for (const auto& e : fs::directory_iterator(dir, ec)) n += e.is_regular_file() ? 1 : 0;
+  return n;
+}
+
+TEST(FarmIntegrity, ACorruptedStoreBlobIsQuarantinedNeverReadAndPutRepairsIt) {
+  TempDir dir;
+  BlobStore store(dir.Path("blobs"), 1 << 20);
+  Bytes data(4096);
+  for (size_t i = 0; i < data.size(); ++i) data[i] = uint8_t(i * 7 + 3);
+  const std::string sha = store.Put(data);
+  EXPECT_EQ(store.Get(sha), data);
+  EXPECT_TRUE(store.Verify(sha));
+
+  FlipByte(store.Path(sha));
+  try {
+    store.Get(sha);
+    ADD_FAILURE() << "a corrupted blob was read";
+  } catch (const BlobCorrupted& e) {
+    EXPECT_NE(std::string(e.what()).find("corrupted"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find(sha), std::string::npos) << e.what();
+  }
+  EXPECT_FALSE(store.Has(sha));  // quarantined: missing, so whoever needs it makes it again
+  EXPECT_EQ(store.corrupted(), 1u);
+  EXPECT_EQ(FilesIn(dir.Path("blobs/quarantine")), 1u);
+  EXPECT_THROW(store.Get(sha), std::out_of_range);
+
+  // Put makes it again; a bad copy already there is replaced, not kept.
+  EXPECT_EQ(store.Put(data), sha);
+  EXPECT_EQ(store.Get(sha), data);
+  FlipByte(store.Path(sha));
+  EXPECT_EQ(store.Put(data), sha);
+  EXPECT_TRUE(store.Verify(sha));
+  EXPECT_EQ(store.Get(sha), data);
+  EXPECT_EQ(store.corrupted(), 2u);
+  EXPECT_EQ(FilesIn(dir.Path("blobs/quarantine")), 2u);
+}
+
+const std::vector<std::string> kJob = {"--method", "brute", "--resolution", "16x16", "--lights", "500", "--seed", "3"};
+
+// A finished job's result blob changed on the coordinator's disk while it was down: `fetch`
+// fails with DATA_LOSS naming the corruption instead of serving the changed image, and the
+// coordinator stays up.
+TEST(FarmIntegrity, ACorruptedResultIsNeverServed) {
+  TempDir dir;
+  const std::string state = dir.Path("state");
+  auto coordinator = std::make_unique<CoordinatorProcess>(dir, state, std::vector<std::string>{});
+  const int port = coordinator->port();
+  auto worker = StartWorker(dir, coordinator->address());
+  std::vector<std::string> submit = {"submit", ExampleCornellBox(), "--server", coordinator->address(), "--wait",
+                                     "--quiet", "--out", dir.Path("first.exr")};
+  submit.insert(submit.end(), kJob.begin(), kJob.end());
+  CliResult first = RunCli(dir, submit);
+  ASSERT_EQ(first.exit_code, 0) << first.err;
+  const std::string job = nlohmann::json::parse(Slurp(dir.Path("first.json")))["farm"]["job_id"];
+  std::string sha;
+  {
+    StateDb db(state + "/state.sqlite");
+    sha = db.QueryText("SELECT result_sha FROM jobs WHERE id = " + job);
+  }
+  ASSERT_EQ(sha.size(), 64u);
+  coordinator->process().Kill(SIGKILL);
+  coordinator->process().Wait(5);
+  FlipByte(state + "/blobs/" + sha);
+  coordinator = std::make_unique<CoordinatorProcess>(dir, state, std::vector<std::string>{}, port);
+
+  CliResult fetch = RunCli(dir, {"fetch", job, "--server", coordinator->address(), "--out", dir.Path("again.exr")});
+  EXPECT_NE(fetch.exit_code, 0);
+  EXPECT_NE(fetch.err.find("DATA_LOSS"), std::string::npos) << fetch.err;
+  EXPECT_NE(fetch.err.find("corrupted"), std::string::npos) << fetch.err;
+  EXPECT_FALSE(fs::exists(dir.Path("again.exr")));
+  EXPECT_TRUE(coordinator->process().running());
+  EXPECT_EQ(FilesIn(state + "/blobs/quarantine"), 1u);
+  // The same job submitted again renders the same bits (the bad blob is gone, not reused).
+  submit[7] = dir.Path("second.exr");
+  CliResult second = RunCli(dir, submit);
+  ASSERT_EQ(second.exit_code, 0) << second.err;
+  EXPECT_TRUE(SameBits(ReadImage(dir.Path("second.exr")), ReadImage(dir.Path("first.exr"))));
+}
+
+// Every blob in a worker's cache (scene files, light set, receivers) changed between two jobs: a
+// worker started on that cache fetches them again, and the job keeps its bits.
+TEST(FarmIntegrity, ACorruptedWorkerCacheIsFetchedAgain) {
+  TempDir dir;
+  CoordinatorProcess coordinator(dir, dir.Path("state"), {});
+  const std::string cache = dir.Path("cache");
+  auto start_worker = [&](const std::string& log) {
+    return std::make_unique<Process>(
+        std::vector<std::string>{LIGHTFARM_WORKER_PATH, "--coordinator", coordinator.address(), "--threads", "1",
+                                 "--poll-interval", "0.02", "--cache-dir", cache, "--log-level", "warn"},
+        dir.Path(log));
+  };
+  std::vector<std::string> submit = {"submit", ExampleCornellBox(), "--server", coordinator.address(), "--wait",
+                                     "--quiet", "--out", dir.Path("first.exr")};
+  submit.insert(submit.end(), kJob.begin(), kJob.end());
+  {
+    auto worker = start_worker("worker-a");
+    CliResult first = RunCli(dir, submit);
+    ASSERT_EQ(first.exit_code, 0) << first.err;
+  }
+  size_t flipped = 0;
+  for (const auto& e : fs::recursive_directory_iterator(cache))
+    if (e.is_regular_file() && IsSha256Hex(e.path().filename().string()) && fs::file_size(e.path()) > 0) {
+      FlipByte(e.path().string());
+      ++flipped;
+    }
+  ASSERT_GE(flipped, 3u);  // the scene file, the light set and the receivers at least
+  auto worker = start_worker("worker-b");
+  submit[7] = dir.Path("second.exr");
+  CliResult second = RunCli(dir, submit);
+  ASSERT_EQ(second.exit_code, 0) << second.err;
+  EXPECT_TRUE(SameBits(ReadImage(dir.Path("second.exr")), ReadImage(dir.Path("first.exr"))));
+  const std::string log = worker->out() + worker->err();
+  EXPECT_NE(log.find("is corrupted"), std::string::npos) << log;
+}
+
+}  // namespace test_farm_integrity
+}  // namespace lightfarm
