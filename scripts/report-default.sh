@@ -55,8 +55,16 @@ invocation+=" ${scenes[*]}"
 # --stats FILE).
 render() {
   local stats="${*: -1}"
+  rendered=0
   if [ "${LIGHTFARM_REUSE_RUNS:-0}" = 1 ] && [ -f "$stats" ]; then return 0; fi
   "$lf" render "$@"
+  rendered=1
+}
+# `path` with N samples per pixel: above the 4096 one render allows, in equal passes (their
+# images averaged: the same estimator), with the time of all of them.
+path_args() {
+  local n=$1 passes=$(( ($1 + 4095) / 4096 ))
+  echo --spp $(( (n + passes - 1) / passes )) --passes "$passes"
 }
 json() { /usr/bin/python3 -c "import json,sys; d=json.load(open(sys.argv[1])); print(eval(sys.argv[2], {'d': d}))" "$@"; }
 error() { "$lf" compare --resize --json "$1" "$2" | /usr/bin/python3 -c "import json,sys; d=json.load(sys.stdin); print(d['rel_l1'], d['rel_l2'])"; }
@@ -102,18 +110,19 @@ for res in "${resolutions[@]}"; do
   path_spp=$(/usr/bin/python3 -c "
 per = max(($t4 - $t1) / 3, 1e-6); fixed = max($t1 - per, 0)
 print(max(1, min(65536, int(($t_default - fixed) / per))))")
-  render "$scene" --quiet "${size[@]}" --method path --spp "$path_spp" --seed 3 --out "$w/path.exr" --stats "$w/path.json"
-  [ "${LIGHTFARM_REUSE_RUNS:-0}" = 1 ] && path_spp=$(json "$w/path.json" "d['spp']")
+  render "$scene" --quiet "${size[@]}" --method path $(path_args "$path_spp") --seed 3 --out "$w/path.exr" --stats "$w/path.json"
   t_path=$(json "$w/path.json" "d['time']['total_s']")
+  path_spp=$(json "$w/path.json" "d['spp'] * d.get('passes', 1)")
   # The model is linear; when the run missed the default's time by more than 10%, the spp is
   # rescaled by the measured ratio and rendered once more.
   rescaled=$(/usr/bin/python3 -c "
 r = $t_default / max($t_path, 1e-6)
 print(max(1, min(65536, round($path_spp * r))) if abs(r - 1) > 0.1 else 0)")
-  if [ "$rescaled" -gt 0 ] && [ "${LIGHTFARM_REUSE_RUNS:-0}" != 1 ]; then
+  if [ "$rescaled" -gt 0 ] && [ "$rendered" = 1 ]; then
     path_spp=$rescaled
-    "$lf" render "$scene" --quiet "${size[@]}" --method path --spp "$path_spp" --seed 3 --out "$w/path.exr" --stats "$w/path.json"
+    "$lf" render "$scene" --quiet "${size[@]}" --method path $(path_args "$path_spp") --seed 3 --out "$w/path.exr" --stats "$w/path.json"
     t_path=$(json "$w/path.json" "d['time']['total_s']")
+    path_spp=$(json "$w/path.json" "d['spp'] * d.get('passes', 1)")
   fi
   read -r e_path e2_path < <(error "$truth" "$w/path.exr")
   # The camera-side supersampling's share: active pixels and the receivers phase (pilot and
