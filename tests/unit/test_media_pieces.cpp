@@ -265,6 +265,11 @@ TEST(MediaPieces, CutRowsPiecesAndCameraSideDirectLightGiveTheSameImage) {
   // and camera paths carrying the emitters' single scattering.
   EXPECT_GT(cut_stats["receivers"]["segments"].get<uint64_t>(), cut_stats["receivers"]["camera_samples"].get<uint64_t>());
   EXPECT_GT(cut_stats["receivers"]["camera_paths"].get<uint64_t>(), 0u);
+  EXPECT_GT(cut_stats["receivers"]["media_direct_samples"].get<uint64_t>(), 0u);
+  EXPECT_GT(cut_stats["lights"]["vrl"].get<uint64_t>(), cut_stats["lights"]["vrl_flights"].get<uint64_t>());
+  // and a grid medium's rows and columns are tabulated tracks, each with its cell-face knots.
+  EXPECT_GT(cut_stats["media"]["tracks"].get<uint64_t>(), 0u);
+  EXPECT_GT(cut_stats["media"]["track_knots"].get<uint64_t>(), cut_stats["media"]["tracks"].get<uint64_t>());
   // Twice or none of the emitters' single scattering would move the mean by far more than the
   // bound: it is a fifth of the image or more (one light budget: the emitters' columns alone),
   // the bound under a tenth.

@@ -78,6 +78,10 @@ TEST(MediaTransport, SurfaceOnlySceneDoesNoMediaWork) {
   EXPECT_EQ(out.stats["receivers"]["transmittance_evals"].get<uint64_t>(), 0u);
   EXPECT_EQ(out.stats["lights"]["vrl"].get<uint64_t>(), 0u);
   EXPECT_EQ(out.stats["receivers"]["segments"].get<uint64_t>(), 0u);
+  EXPECT_EQ(out.stats["receivers"]["media_direct_samples"].get<uint64_t>(), 0u);
+  EXPECT_EQ(out.stats["lights"]["vrl_flights"].get<uint64_t>(), 0u);
+  EXPECT_EQ(out.stats["media"]["tracks"].get<uint64_t>(), 0u);
+  EXPECT_EQ(out.stats["media"]["track_knots"].get<uint64_t>(), 0u);
   for (const RGB& p : out.image.pixels) ASSERT_NEAR(p.g, 0.5f, 1e-5f);
 }
 
