@@ -45,6 +45,10 @@ EmbeddedRender RenderOnEmbeddedFarm(const std::string& scene_path, const RenderS
   copt.max_spp = 1 << 20;
   copt.max_blob_bytes = ~uint64_t(0) >> 2;
   copt.max_active_jobs = 1;
+  // One render, no queue: a full disk fails it (nothing else would free the space) instead of
+  // pausing it.
+  copt.min_free_bytes = 0;
+  copt.wait_for_space = false;
   Coordinator coordinator(copt);
   coordinator.Start();
   ServerConfig scfg;

@@ -4,13 +4,28 @@
 
 #include <spdlog/spdlog.h>
 
+#include <cerrno>
 #include <chrono>
+#include <cstring>
 #include <filesystem>
 #include <stdexcept>
+
+#include "coordinator/storage_full.h"
 
 namespace lightfarm {
 
 namespace fs = std::filesystem;
+
+namespace {
+
+// A write that failed: StorageFull when the disk is out of space (errno of the failed call),
+// else an error naming the file.
+[[noreturn]] void ThrowWriteError(const std::string& path, int err) {
+  if (IsNoSpaceErrno(err)) throw StorageFull("blob store: no space left to write " + path);
+  throw std::runtime_error("blob store: cannot write " + path + (err ? std::string(": ") + std::strerror(err) : ""));
+}
+
+}  // namespace
 
 BlobStore::BlobStore(std::string dir, uint64_t max_blob_bytes)
     : dir_(std::move(dir)), max_blob_bytes_(max_blob_bytes) {
@@ -63,13 +78,35 @@ std::string BlobStore::Put(ByteView bytes) {
   if (Verify(sha)) return sha;
   std::string tmp = TempPath();
   {
+    errno = 0;
     std::ofstream f(tmp, std::ios::binary);
     f.write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size()));
-    f.flush();
-    if (!f) throw std::runtime_error("blob store: cannot write " + tmp);
+    f.close();
+    if (!f) {
+      const int err = errno;
+      std::error_code ec;
+      fs::remove(tmp, ec);  // a partial file must not hold the space the next write needs
+      ThrowWriteError(tmp, err);
+    }
   }
   fs::rename(tmp, Path(sha));
   return sha;
+}
+
+bool BlobStore::CanWrite(uint64_t bytes) {
+  const std::string tmp = TempPath();
+  bool ok = false;
+  {
+    std::ofstream f(tmp, std::ios::binary);
+    const std::string block(64 << 10, '\0');
+    for (uint64_t left = bytes; f && left > 0; left -= std::min<uint64_t>(left, block.size()))
+      f.write(block.data(), std::streamsize(std::min<uint64_t>(left, block.size())));
+    f.close();
+    ok = bool(f);
+  }
+  std::error_code ec;
+  fs::remove(tmp, ec);
+  return ok;
 }
 
 Bytes BlobStore::Get(const std::string& sha256) const {
@@ -86,8 +123,9 @@ Bytes BlobStore::Get(const std::string& sha256) const {
 BlobStore::Upload::Upload(BlobStore* store, std::string expected_sha256, uint64_t expected_size)
     : store_(store), sha_(std::move(expected_sha256)), expected_size_(expected_size) {
   tmp_ = store_->TempPath();
+  errno = 0;
   out_.open(tmp_, std::ios::binary);
-  if (!out_) throw std::runtime_error("blob store: cannot write " + tmp_);
+  if (!out_) ThrowWriteError(tmp_, errno);
 }
 
 BlobStore::Upload::~Upload() {
@@ -104,7 +142,9 @@ void BlobStore::Upload::Append(const std::string& data) {
     throw std::length_error("blob " + sha_ + ": more data than the declared " +
                             std::to_string(expected_size_) + " bytes");
   hash_.Update(data.data(), data.size());
+  errno = 0;
   out_.write(data.data(), std::streamsize(data.size()));
+  if (!out_) ThrowWriteError(tmp_, errno);
 }
 
 void BlobStore::Upload::Commit() {
@@ -114,9 +154,9 @@ void BlobStore::Upload::Commit() {
   std::string got = hash_.HexDigest();
   if (got != sha_)
     throw std::invalid_argument("blob content hashes to " + got + ", not the declared " + sha_);
-  out_.flush();
+  errno = 0;
   out_.close();
-  if (!out_) throw std::runtime_error("blob store: cannot write " + tmp_);
+  if (!out_) ThrowWriteError(tmp_, errno);
   fs::rename(tmp_, store_->Path(sha_));
   committed_ = true;
 }

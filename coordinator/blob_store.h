@@ -38,6 +38,9 @@ class BlobStore {
   // Re-hashes a stored blob: true when it is intact; false when it is missing or was corrupted
   // (then quarantined, logged and counted). For readers that stream the file from Path().
   bool Verify(const std::string& sha256) const;
+  // Whether a file of `bytes` can be written here now (written to a temporary file and removed):
+  // the coordinator's check that space has returned after a full disk.
+  bool CanWrite(uint64_t bytes);
   // Blobs found corrupted and quarantined since the store opened.
   uint64_t corrupted() const { return corrupted_; }
   uint64_t max_blob_bytes() const { return max_blob_bytes_; }

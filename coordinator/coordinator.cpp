@@ -73,10 +73,41 @@ std::string RandomId() {
 
 }  // namespace
 
+namespace {
+
+// Blobs already in a state directory's store (counted up to `limit`).
+size_t StoredBlobs(const std::string& blob_dir, size_t limit) {
+  size_t n = 0;
+  std::error_code ec;
+  for (auto it = fs::directory_iterator(blob_dir, ec); !ec && it != fs::directory_iterator() && n < limit;
+       it.increment(ec))
+    n += it->is_regular_file(ec) && IsSha256Hex(it->path().filename().string());
+  return n;
+}
+
+}  // namespace
+
 Coordinator::Coordinator(CoordinatorOptions options) : options_(std::move(options)) {
   if (options_.state_dir.empty()) throw std::invalid_argument("coordinator: --state-dir is required");
   fs::create_directories(options_.state_dir);
-  store_ = std::make_unique<JobStore>(options_.state_dir + "/state.sqlite");
+  // A database that is gone or empty beside a store of blobs is a lost database, not a new
+  // farm: starting would forget every job those blobs belong to and reuse their ids.
+  const std::string db = options_.state_dir + "/state.sqlite";
+  std::error_code ec;
+  const bool db_empty = !fs::exists(db, ec) || fs::file_size(db, ec) == 0;
+  if (db_empty) {
+    const size_t blobs = StoredBlobs(options_.state_dir + "/blobs", 1000);
+    if (blobs > 0 && !options_.fresh_state)
+      throw std::runtime_error("state directory " + options_.state_dir + " holds " +
+                               (blobs >= 1000 ? "1000 or more" : std::to_string(blobs)) + " blobs but its database " +
+                               db + (fs::exists(db, ec) ? " is empty" : " is missing") +
+                               ": the jobs they belong to would be forgotten. Restore the database from a "
+                               "backup, or pass --fresh-state to start an empty farm here on purpose");
+    if (blobs > 0)
+      spdlog::warn("state directory {}: starting an empty farm beside {} existing blobs (--fresh-state)",
+                   options_.state_dir, blobs);
+  }
+  store_ = std::make_unique<JobStore>(db);
   blobs_ = std::make_unique<BlobStore>(options_.state_dir + "/blobs", options_.max_blob_bytes);
   job_planner_ = std::make_unique<JobPlanner>(
       options_.state_dir, PlanLimits{options_.max_resolution, options_.max_spp}, *store_, *blobs_);
@@ -159,6 +190,7 @@ std::vector<std::string> Coordinator::FindMissingBlobs(const std::vector<std::st
 
 std::string Coordinator::Submit(const v1::SubmitJobRequest& req) {
   if (draining_) throw FarmError(Code::kUnavailable, "coordinator is shutting down; submit again later");
+  if (storage_full_ || StorageLow()) throw FarmError(Code::kResourceExhausted, StorageFullMessage());
   // Validate the manifest: every file uploaded, every path inside the scene directory.
   const v1::SceneManifest& m = req.scene();
   if (m.files_size() == 0) throw FarmError(Code::kInvalidArgument, "the scene manifest lists no files");
@@ -219,7 +251,12 @@ std::string Coordinator::Submit(const v1::SubmitJobRequest& req) {
   r.manifest = m.SerializeAsString();
   r.settings = s.SerializeAsString();
   Job job;
-  job.id = store_->InsertJob(r);
+  try {
+    job.id = store_->InsertJob(r);
+  } catch (const StorageFull& e) {
+    NoteStorageFull(e.what());
+    throw FarmError(Code::kResourceExhausted, StorageFullMessage());
+  }
   job.name = req.name();
   job.priority = req.priority();
   job.manifest = m;
@@ -282,6 +319,7 @@ v1::JobStatus Coordinator::StatusLocked(const Job& job) const {
   for (const v1::SceneFile& f : job.manifest.files())
     if (f.path() == job.manifest.root()) st.set_scene_sha256(f.sha256());
   if (job.passes.progressive()) ProgressiveStatus(job, &st);
+  if (!IsTerminal(job.state) && storage_full_) st.set_waiting(StorageFullMessage());
   return st;
 }
 
@@ -325,11 +363,11 @@ v1::JobStatus Coordinator::Cancel(const std::string& job_id) {
   std::lock_guard lock(mu_);
   Job& job = FindJob(job_id);
   if (!IsTerminal(job.state)) {
+    store_->SetJobState(job.id, v1::JOB_STATE_CANCELLED, "cancelled");  // a full disk: refused, unchanged
     job.state = v1::JOB_STATE_CANCELLED;
     job.ended = Clock::now();
     job.error = "cancelled";
     job.plan.reset();
-    store_->SetJobState(job.id, job.state, job.error);
     spdlog::info("job {}: cancelled", job.id);
     MaybeStartPlanningLocked();
   }
@@ -468,7 +506,12 @@ std::string Coordinator::RegisterWorker(const std::string& name, uint32_t protoc
                         std::to_string(kWorkerProtocolVersion) + " (lightfarm " LIGHTFARM_VERSION
                         "): upgrade the worker to the coordinator's version");
   std::string id = "w-" + RandomId();
-  store_->UpsertWorker({id, name, software_version, threads});
+  try {
+    store_->UpsertWorker({id, name, software_version, threads});
+  } catch (const StorageFull& e) {
+    // Only the dashboard's memory of the worker is durable: it works unrecorded meanwhile.
+    NoteStorageFull(e.what());
+  }
   std::lock_guard lock(mu_);
   workers_[id] = WorkerInfo{name, software_version, threads};
   SeenLocked(id);
@@ -528,7 +571,7 @@ LeaseGrant Coordinator::Lease(const std::string& worker_id) {
   WorkerInfo& worker = workers_[worker_id];
   worker.lease.clear();  // a worker asks for a task when it holds none
   LeaseGrant grant;
-  if (draining_ || stopping_) return grant;
+  if (draining_ || stopping_ || storage_full_) return grant;  // a full disk: no new work until space returns
   // Highest priority first, then the oldest job; within a job the lowest task id.
   Job* best = nullptr;
   size_t best_task = 0;
@@ -554,9 +597,19 @@ LeaseGrant Coordinator::Lease(const std::string& worker_id) {
   task.expiry = Clock::now() + std::chrono::milliseconds(lease_timeout_ms());
   ++task.attempts;
   ++job.attempts_total;
-  task.attempt_row = store_->RecordLease(job.id, TaskRecord{job.stage, int(best_task), int(task.state), task.attempts,
-                                                            task.failures, task.result_sha, task.last_error},
-                                         worker_id);
+  try {
+    task.attempt_row = store_->RecordLease(job.id, TaskRecord{job.stage, int(best_task), int(task.state),
+                                                              task.attempts, task.failures, task.result_sha,
+                                                              task.last_error},
+                                           worker_id);
+  } catch (const StorageFull& e) {
+    task.state = TaskStateCode::kPending;  // not granted: the task stays as it was
+    task.worker.clear();
+    --task.attempts;
+    --job.attempts_total;
+    NoteStorageFull(e.what());
+    return grant;
+  }
   ++m_leases_;
   grant.has_task = true;
   grant.lease_id = std::to_string(job.id) + "." + std::to_string(job.stage) + "." +
@@ -627,7 +680,16 @@ bool Coordinator::Complete(const std::string& worker_id, const std::string& leas
     problem = std::string("malformed result: ") + e.what();
   }
   std::string sha;
-  if (problem.empty()) sha = blobs_->Put(bytes);
+  const auto storage_full = [&](const StorageFull& e) {
+    NoteStorageFull(e.what());
+    // UNAVAILABLE: the worker keeps the result and delivers it again.
+    return FarmError(Code::kUnavailable, "the coordinator cannot store the result now: " + StorageFullMessage());
+  };
+  try {
+    if (problem.empty()) sha = blobs_->Put(bytes);
+  } catch (const StorageFull& e) {
+    throw storage_full(e);
+  }
 
   std::lock_guard lock(mu_);
   SeenLocked(worker_id);
@@ -646,14 +708,18 @@ bool Coordinator::Complete(const std::string& worker_id, const std::string& leas
       RecordFailureLocked(*job, ref.task, worker_id, problem);
     throw FarmError(Code::kInvalidArgument, problem);
   }
+  try {
+    store_->RecordCompletion(job->id,
+                            TaskRecord{job->stage, int(ref.task), int(TaskStateCode::kDone), task->attempts,
+                                       task->failures, sha, task->last_error},
+                            task->attempt_row);
+  } catch (const StorageFull& e) {
+    throw storage_full(e);
+  }
   task->state = TaskStateCode::kDone;
   task->result_sha = sha;
   task->worker = worker_id;
   ++worker.tasks_done;
-  store_->RecordCompletion(job->id,
-                          TaskRecord{job->stage, int(ref.task), int(task->state), task->attempts, task->failures,
-                                     sha, task->last_error},
-                          task->attempt_row);
   ++job->tasks_done;
   ++job->completions_total;
   ++m_completed_;
@@ -679,7 +745,11 @@ void Coordinator::Fail(const std::string& worker_id, const std::string& lease_id
   if (hand_back) {
     task->state = TaskStateCode::kPending;
     job->next_pending = std::min<size_t>(job->next_pending, ref.task);
-    if (task->attempt_row) store_->EndAttempt(task->attempt_row, "handed back: " + reason);
+    try {
+      if (task->attempt_row) store_->EndAttempt(task->attempt_row, "handed back: " + reason);
+    } catch (const StorageFull& e) {
+      NoteStorageFull(e.what());  // the attempt's row stays open; the task is pending all the same
+    }
     return;
   }
   RecordFailureLocked(*job, ref.task, worker_id, reason);
@@ -694,9 +764,13 @@ void Coordinator::RecordFailureLocked(Job& job, uint32_t task_id, const std::str
   task.last_error = reason;
   task.state = TaskStateCode::kPending;
   job.next_pending = std::min<size_t>(job.next_pending, task_id);
-  if (task.attempt_row) store_->EndAttempt(task.attempt_row, "failed: " + reason);
-  store_->UpdateTask(job.id, TaskRecord{job.stage, int(task_id), int(task.state), task.attempts,
-                                        task.failures, task.result_sha, task.last_error});
+  try {
+    if (task.attempt_row) store_->EndAttempt(task.attempt_row, "failed: " + reason);
+    store_->UpdateTask(job.id, TaskRecord{job.stage, int(task_id), int(task.state), task.attempts,
+                                          task.failures, task.result_sha, task.last_error});
+  } catch (const StorageFull& e) {
+    NoteStorageFull(e.what());  // the failure counts in memory; a restart forgets it, which is safe
+  }
   if (++job.worker_failures[worker] == options_.max_attempts)
     spdlog::warn("job {}: worker {} failed {} tasks and is kept off this job", job.id, worker,
                  options_.max_attempts);
@@ -712,7 +786,11 @@ void Coordinator::FailJobLocked(Job& job, const std::string& error) {
   job.ended = Clock::now();
   job.error = error;
   job.plan.reset();
-  store_->SetJobState(job.id, job.state, error);
+  try {
+    store_->SetJobState(job.id, job.state, error);
+  } catch (const StorageFull& e) {
+    NoteStorageFull(e.what());  // unrecorded: a restarted coordinator plans the job again
+  }
   spdlog::warn("job {}: failed: {}", job.id, error);
   MaybeStartPlanningLocked();
 }
@@ -720,7 +798,7 @@ void Coordinator::FailJobLocked(Job& job, const std::string& error) {
 // --- planning and stages --------------------------------------------------------------------------
 
 void Coordinator::MaybeStartPlanningLocked() {
-  if (stopping_) return;
+  if (stopping_ || storage_full_) return;
   int active = 0;
   for (const auto& [id, j] : jobs_)
     active += j.state == v1::JOB_STATE_PLANNING || j.state == v1::JOB_STATE_RUNNING;
@@ -729,9 +807,14 @@ void Coordinator::MaybeStartPlanningLocked() {
     for (auto& [id, j] : jobs_)
       if (j.state == v1::JOB_STATE_QUEUED && (!next || j.priority > next->priority)) next = &j;
     if (!next) return;
+    try {
+      store_->SetJobState(next->id, v1::JOB_STATE_PLANNING, "");
+    } catch (const StorageFull& e) {
+      NoteStorageFull(e.what());
+      return;
+    }
     next->state = v1::JOB_STATE_PLANNING;
     next->started = next->pass_started = Clock::now();
-    store_->SetJobState(next->id, next->state, "");
     const int64_t id = next->id;
     planner_->Submit([this, id] { PlanJob(id); });
     ++active;
@@ -754,9 +837,17 @@ void Coordinator::PlanJob(int64_t id) {
   try {
     planned = job_planner_->PlanStage(id, manifest, settings, stage);
   } catch (const std::exception& e) {
+    const bool storage = IsStorageFault(e);
+    if (storage) NoteStorageFull(e.what());
     std::lock_guard lock(mu_);
     Job& job = jobs_.at(id);
-    if (job.state == v1::JOB_STATE_PLANNING) FailJobLocked(job, e.what());
+    if (job.state != v1::JOB_STATE_PLANNING) return;
+    if (storage) {
+      job.state = v1::JOB_STATE_QUEUED;  // planned again when space returns
+      spdlog::warn("job {}: planning paused, the disk is full: {}", id, e.what());
+      return;
+    }
+    FailJobLocked(job, e.what());
     return;
   }
   std::vector<Task> tasks = MakeTasks(planned.specs);
@@ -797,7 +888,11 @@ void Coordinator::PlanJob(int64_t id) {
   job.stage_started = Clock::now();
   job.attempts_total += attempts;
   job.state = v1::JOB_STATE_RUNNING;
-  store_->SetJobState(id, job.state, "");
+  try {
+    store_->SetJobState(id, job.state, "");
+  } catch (const StorageFull& e) {
+    NoteStorageFull(e.what());  // the store says PLANNING: a restart plans it again, which is safe
+  }
   spdlog::info("job {}: stage {} ({}) has {} tasks, {} done", id, stage, job.stage_name,
                job.tasks.size(), job.tasks_done);
   if (job.tasks_done == job.tasks.size()) {
@@ -855,9 +950,19 @@ void Coordinator::AdvanceStage(int64_t id) {
       planner_->Submit([this, id] { AdvanceStage(id); });
     }
   } catch (const std::exception& e) {
+    const bool storage = IsStorageFault(e);
+    if (storage) NoteStorageFull(e.what());
     std::lock_guard lock(mu_);
     Job& job = jobs_.at(id);
-    if (!IsTerminal(job.state)) FailJobLocked(job, std::string("stage ") + std::to_string(stage) + ": " + e.what());
+    if (IsTerminal(job.state)) return;
+    if (storage) {
+      // The stage's results are all stored: it is combined (or the film made) when space returns.
+      job.advancing = false;
+      job.advance_paused = true;
+      spdlog::warn("job {}: stage {} waits for disk space: {}", id, stage, e.what());
+      return;
+    }
+    FailJobLocked(job, std::string("stage ") + std::to_string(stage) + ": " + e.what());
   }
 }
 
@@ -927,7 +1032,11 @@ void Coordinator::FinishJob(int64_t id, std::shared_ptr<Plan> plan, int final_st
       job.tasks_done = job.done_at_stage_start = 0;
       job.times = PhaseTimes();
       job.pass_started = Clock::now();
-      store_->SetJobState(id, job.state, "");
+      try {
+        store_->SetJobState(id, job.state, "");
+      } catch (const StorageFull& e) {
+        NoteStorageFull(e.what());
+      }
       planner_->Submit([this, id] { PlanJob(id); });
       return;
     }
@@ -938,6 +1047,80 @@ void Coordinator::FinishJob(int64_t id, std::shared_ptr<Plan> plan, int final_st
   MaybeStartPlanningLocked();
 }
 
+// --- storage ---------------------------------------------------------------------------------------
+
+bool Coordinator::StorageLow() const {
+  std::error_code ec;
+  const fs::space_info space = fs::space(options_.state_dir, ec);
+  return !ec && space.available < options_.min_free_bytes;
+}
+
+std::string Coordinator::StorageFullMessage() const {
+  std::error_code ec;
+  const fs::space_info space = fs::space(options_.state_dir, ec);
+  std::string what;
+  {
+    std::lock_guard lock(storage_mu_);
+    what = storage_full_what_;
+  }
+  std::ostringstream os;
+  os << "the coordinator's disk is full (";
+  if (!ec) os << (space.available >> 20) << " MiB free under " << options_.state_dir << "; ";
+  os << "new work needs " << (options_.min_free_bytes >> 20) << " MiB, --min-free-mb)";
+  if (!what.empty()) os << ": " << what;
+  os << ". Accepted jobs wait and resume when space returns";
+  return os.str();
+}
+
+void Coordinator::NoteStorageFull(const std::string& what) {
+  if (!options_.wait_for_space) {
+    spdlog::error("state directory {} is full: {}", options_.state_dir, what);
+    return;
+  }
+  {
+    std::lock_guard lock(storage_mu_);
+    storage_full_what_ = what;
+  }
+  if (!storage_full_.exchange(true)) {
+    ++m_storage_full_;
+    spdlog::error("state directory {} is full ({}): new jobs are refused and leases paused until space returns",
+                  options_.state_dir, what);
+  }
+}
+
+bool Coordinator::IsStorageFault(const std::exception& e) const {
+  if (!options_.wait_for_space) return false;
+  if (dynamic_cast<const StorageFull*>(&e)) return true;
+  if (const auto* fe = dynamic_cast<const fs::filesystem_error*>(&e); fe && IsNoSpaceErrno(fe->code().value()))
+    return true;
+  // Image writers and the like report a failed write in their own words: while space is low,
+  // a write error is the disk's, not the job's.
+  return StorageLow();
+}
+
+void Coordinator::CheckStorageLocked() {
+  const auto now = Clock::now();
+  if (now - storage_checked_ < std::chrono::milliseconds(500)) return;
+  storage_checked_ = now;
+  const bool low = StorageLow();
+  if (!storage_full_) {
+    if (low) NoteStorageFull("free space is below --min-free-mb");
+    return;
+  }
+  // Space is back when it is above the reserve and a write of a typical blob succeeds.
+  if (low || !blobs_->CanWrite(1 << 20)) return;
+  storage_full_ = false;
+  spdlog::warn("state directory {} has space again: resuming", options_.state_dir);
+  for (auto& [id, job] : jobs_) {
+    if (job.state != v1::JOB_STATE_RUNNING || !job.advance_paused) continue;
+    job.advance_paused = false;
+    job.advancing = true;
+    const int64_t job_id = id;
+    planner_->Submit([this, job_id] { AdvanceStage(job_id); });
+  }
+  MaybeStartPlanningLocked();
+}
+
 void Coordinator::TickLoop() {
   const auto period = std::chrono::milliseconds(
       std::clamp<int64_t>(int64_t(options_.lease_timeout_s * 1000.0 / 10.0), 10, 1000));
@@ -945,6 +1128,9 @@ void Coordinator::TickLoop() {
   while (!stopping_) {
     tick_cv_.wait_for(lock, period);
     if (stopping_) break;
+    CheckStorageLocked();
+    // While the disk is full a worker cannot deliver: its lease is left to run on, not failed.
+    if (storage_full_) continue;
     // Expired leases: the worker died or hangs; the task goes back to the queue.
     const auto now = Clock::now();
     for (auto& [id, job] : jobs_) {
@@ -997,6 +1183,11 @@ std::string Coordinator::MetricsText() {
   counter("lightfarm_tasks_duplicate_total", "Duplicate or stale task results ignored.", m_duplicates_);
   counter("lightfarm_task_failures_total", "Failed task attempts (including expired leases).", m_failed_);
   counter("lightfarm_leases_expired_total", "Leases that expired without a heartbeat.", m_expired_);
+  gauge("lightfarm_storage_full", "1 while the state directory is too full to take new work.", storage_full_ ? 1 : 0);
+  counter("lightfarm_storage_full_total", "Times the state directory filled up (writes refused or space below --min-free-mb).",
+          m_storage_full_);
+  counter("lightfarm_blobs_corrupted_total", "Blobs found corrupted on the coordinator's disk and quarantined.",
+          blobs_->corrupted());
   return os.str();
 }
 

@@ -25,6 +25,7 @@
 #include "coordinator/job_images.h"
 #include "coordinator/job_planner.h"
 #include "coordinator/job_store.h"
+#include "coordinator/storage_full.h"
 #include "coordinator/thread_pool.h"
 #include "lightfarm/v1/render.pb.h"
 #include "lightfarm/v1/worker.pb.h"
@@ -45,6 +46,15 @@ struct CoordinatorOptions {
   int max_active_jobs = 2;           // jobs planning or running at once
   int max_queued_jobs = 1000;        // unfinished jobs accepted
   int planner_threads = 1;
+  // Below this much free space under state_dir the coordinator takes no new work (RESOURCE_EXHAUSTED
+  // for submits and uploads, no leases, no planning) and resumes when space returns.
+  uint64_t min_free_bytes = 100ull << 20;
+  // A storage fault pauses the work that writes until space returns (a farm); false: it is an
+  // ordinary error that fails the job (an embedded render).
+  bool wait_for_space = true;
+  // Start an empty farm on a state directory whose database is missing or empty although it
+  // holds blobs (otherwise refused: the jobs those blobs belong to would be forgotten).
+  bool fresh_state = false;
 };
 
 class FarmError : public std::runtime_error {
@@ -116,6 +126,10 @@ class Coordinator {
   // Prometheus text exposition.
   std::string MetricsText();
 
+  // The state directory is (nearly) full: new work is refused until space returns.
+  bool storage_full() const { return storage_full_; }
+  std::string StorageFullMessage() const;
+
  private:
   using Clock = std::chrono::steady_clock;
   struct Task {
@@ -150,6 +164,7 @@ class Coordinator {
     std::map<std::string, int> worker_failures;
     uint64_t attempts_total = 0, completions_total = 0;
     bool advancing = false;
+    bool advance_paused = false;  // its stage finished while the disk was full: advanced on recovery
     std::string result_sha, stats_json;
     std::shared_ptr<const JobPreview> preview;  // the latest one computed
     // Progressive jobs (progressive.h): the pass running, the finished ones accumulated, and
@@ -190,6 +205,14 @@ class Coordinator {
   void RecordFailureLocked(Job& job, uint32_t task_id, const std::string& worker,
                            const std::string& reason);
   void FailJobLocked(Job& job, const std::string& error);
+  // Free space under the state directory is below --min-free-mb.
+  bool StorageLow() const;
+  // A write failed for want of space (or space ran low): new work pauses.
+  void NoteStorageFull(const std::string& what);
+  // The tick loop's check: pauses when space is low, resumes the paused work when it returns.
+  void CheckStorageLocked();
+  // An error from planning or combining: a storage fault (pause and retry later) or not.
+  bool IsStorageFault(const std::exception& e) const;
   void MaybeStartPlanningLocked();
   void PlanJob(int64_t id);      // on the planner pool
   void AdvanceStage(int64_t id);  // on the planner pool: Combine + next stage, or the film
@@ -209,13 +232,17 @@ class Coordinator {
   std::map<int64_t, Job> jobs_;
   std::map<std::string, WorkerInfo> workers_;
   std::atomic<bool> draining_{false};
+  std::atomic<bool> storage_full_{false};
+  mutable std::mutex storage_mu_;
+  std::string storage_full_what_;  // the write that failed, or the free space seen (storage_mu_)
+  Clock::time_point storage_checked_;
   bool stopping_ = false;
   std::condition_variable tick_cv_;
   std::thread ticker_;
 
   // Counters for /metrics.
   std::atomic<uint64_t> m_leases_{0}, m_completed_{0}, m_duplicates_{0}, m_failed_{0},
-      m_expired_{0}, m_submitted_{0}, m_lease_polls_{0};
+      m_expired_{0}, m_submitted_{0}, m_lease_polls_{0}, m_storage_full_{0};
 };
 
 }  // namespace lightfarm

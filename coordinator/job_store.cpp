@@ -5,12 +5,24 @@
 #include <chrono>
 #include <stdexcept>
 
+#include "coordinator/storage_full.h"
+
 namespace lightfarm {
 
 namespace {
 
 double Now() {
   return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
+}
+
+// A full disk is StorageFull (the coordinator waits for space); anything else is an error.
+[[noreturn]] void ThrowSqlite(sqlite3* db, int rc, const std::string& what) {
+  const std::string message = what + sqlite3_errmsg(db);
+  if ((rc & 0xff) == SQLITE_FULL || (rc & 0xff) == SQLITE_IOERR) {
+    // SQLITE_IOERR_WRITE and friends carry the system's errno: ENOSPC is a full disk too.
+    if ((rc & 0xff) == SQLITE_FULL || IsNoSpaceErrno(sqlite3_system_errno(db))) throw StorageFull(message);
+  }
+  throw std::runtime_error(message);
 }
 
 // A prepared statement with positional binding; throws on any SQLite error.
@@ -45,7 +57,7 @@ class Stmt {
     int rc = sqlite3_step(st_);
     if (rc == SQLITE_ROW) return true;
     if (rc == SQLITE_DONE) return false;
-    throw std::runtime_error(std::string("sqlite step: ") + sqlite3_errmsg(db_));
+    ThrowSqlite(db_, rc, "sqlite step: ");
   }
   int64_t Int(int col) { return sqlite3_column_int64(st_, col); }
   double Real(int col) { return sqlite3_column_double(st_, col); }
@@ -69,10 +81,39 @@ class Stmt {
 
 JobStore::JobStore(const std::string& path) {
   if (sqlite3_open_v2(path.c_str(), &db_, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE |
-                      SQLITE_OPEN_FULLMUTEX, nullptr) != SQLITE_OK)
-    throw std::runtime_error("cannot open state database " + path + ": " +
-                             (db_ ? sqlite3_errmsg(db_) : "out of memory"));
+                      SQLITE_OPEN_FULLMUTEX, nullptr) != SQLITE_OK) {
+    const std::string error = db_ ? sqlite3_errmsg(db_) : "out of memory";
+    sqlite3_close(db_);
+    throw std::runtime_error("cannot open state database " + path + ": " + error);
+  }
+  try {
+    Initialize(path);
+  } catch (const StorageFull&) {
+    sqlite3_close(db_);
+    throw;
+  } catch (const std::exception& e) {
+    sqlite3_close(db_);  // a refused database is closed: the caller may open another
+    const std::string what = e.what();
+    if (what.find(path) != std::string::npos) throw;
+    throw std::runtime_error("state database " + path + " cannot be used (" + what + "); restore it from a backup");
+  }
+}
+
+void JobStore::Initialize(const std::string& path) {
   sqlite3_busy_timeout(db_, 5000);
+  sqlite3_extended_result_codes(db_, 1);
+  // A damaged database is refused before anything is read from or written to it.
+  {
+    Stmt check(db_, "PRAGMA quick_check");
+    std::string problems;
+    while (check.Step()) {
+      const std::string row = check.Str(0);
+      if (row != "ok" && problems.size() < 2000) problems += (problems.empty() ? "" : "; ") + row;
+    }
+    if (!problems.empty())
+      throw std::runtime_error("state database " + path + " is damaged (SQLite quick_check: " + problems +
+                               "); restore it from a backup");
+  }
   // WAL + NORMAL: a killed process loses nothing committed; only an OS crash may lose the
   // last transactions, which re-running those tasks repairs.
   Exec("PRAGMA journal_mode=WAL");
@@ -174,10 +215,10 @@ void JobStore::RecordCompletion(int64_t job, const TaskRecord& t, int64_t attemp
 
 void JobStore::Exec(const char* sql) {
   char* err = nullptr;
-  if (sqlite3_exec(db_, sql, nullptr, nullptr, &err) != SQLITE_OK) {
-    std::string msg = err ? err : "unknown error";
+  const int rc = sqlite3_exec(db_, sql, nullptr, nullptr, &err);
+  if (rc != SQLITE_OK) {
     sqlite3_free(err);
-    throw std::runtime_error("sqlite: " + msg);
+    ThrowSqlite(db_, rc, "sqlite: ");
   }
 }
 

@@ -1,7 +1,8 @@
 // The coordinator's durable state: SQLite in WAL mode under --state-dir. Jobs, the artifact of
 // each finished stage, tasks (state, attempts, result blob), every attempt, workers. A task's
 // result is recorded as soon as it arrives, so a coordinator killed mid-job loses nothing that
-// was acknowledged. Thread-safe (one connection behind a mutex).
+// was acknowledged. Thread-safe (one connection behind a mutex). Opening runs SQLite's
+// quick_check and refuses a damaged database; a full disk is StorageFull (storage_full.h).
 #pragma once
 
 #include <cstdint>
@@ -84,6 +85,8 @@ class JobStore {
   std::vector<WorkerRecord> LoadWorkers();
 
  private:
+  // Settings, the integrity check and the schema (created, or migrated from older versions).
+  void Initialize(const std::string& path);
   void Exec(const char* sql);
   // Caller holds mu_.
   sqlite3_stmt* Prepared(const char* sql);

@@ -49,6 +49,12 @@ int main(int argc, char** argv) {
   app.add_option("--max-active-jobs", opt.max_active_jobs, "Jobs planned or running at once")->check(CLI::Range(1, 10000));
   app.add_option("--max-queued-jobs", opt.max_queued_jobs, "Unfinished jobs accepted")->check(CLI::Range(1, 1000000));
   app.add_option("--planner-threads", opt.planner_threads, "Threads planning and combining jobs")->check(CLI::Range(1, 64));
+  double min_free_mb = 100;
+  app.add_option("--min-free-mb", min_free_mb,
+                 "Free space under --state-dir below which new jobs, uploads and leases wait (MiB)")
+      ->check(lightfarm::FiniteRange(0.0, 1e9));
+  app.add_flag("--fresh-state", opt.fresh_state,
+               "Start an empty farm even though --state-dir holds blobs and its database is missing or empty");
   app.add_option("--rpc-threads", server.rpc_threads, "Threads serving RPCs")->check(CLI::Range(1, 256));
   app.add_option("--drain-seconds", drain_s, "Grace period for in-flight RPCs on SIGTERM")
       ->check(lightfarm::FiniteRange(0.0, 86400.0));
@@ -57,15 +63,18 @@ int main(int argc, char** argv) {
   spdlog::set_level(spdlog::level::from_str(log_level));
   return lightfarm::RunProgram("lightfarm-coordinator", [&] {
     opt.max_blob_bytes = uint64_t(max_blob_mb * 1024.0 * 1024.0);
+    opt.min_free_bytes = uint64_t(min_free_mb * 1024.0 * 1024.0);
     server.token = lightfarm::ReadTokenFile(token_file);
     lightfarm::RequireImageIo();  // every job ends in an EXR: fail now, not at the first job's end
     lightfarm::Coordinator coordinator(opt);
     coordinator.Start();
     lightfarm::FarmServer farm(coordinator, server);
     lightfarm::CatchStopSignals();
-    // The port line is how scripts learn a picked port (--listen HOST:0).
-    std::cout << "listening on port " << farm.port() << std::endl;
-    if (farm.http_port()) std::cout << "dashboard on port " << farm.http_port() << std::endl;
+    // The port lines are how scripts learn a picked port (--listen HOST:0); written in one call,
+    // so a reader that sees the first sees the second.
+    std::string ports = "listening on port " + std::to_string(farm.port()) + "\n";
+    if (farm.http_port()) ports += "dashboard on port " + std::to_string(farm.http_port()) + "\n";
+    std::cout << ports << std::flush;
     spdlog::info("listening on {} (port {}), state in {}", server.listen, farm.port(), opt.state_dir);
     while (lightfarm::StopSignals() == 0) std::this_thread::sleep_for(std::chrono::milliseconds(100));
     spdlog::info("draining");

@@ -36,6 +36,9 @@ grpc::Status Guard(Fn&& fn) {
     return grpc::Status::OK;
   } catch (const FarmError& e) {
     return ToStatus(e);
+  } catch (const StorageFull& e) {
+    return {grpc::StatusCode::RESOURCE_EXHAUSTED,
+            std::string("the coordinator's disk is full; try again when space returns (") + e.what() + ")"};
   } catch (const std::exception& e) {
     spdlog::error("internal error: {}", e.what());
     return {grpc::StatusCode::INTERNAL, e.what()};
@@ -368,12 +371,14 @@ class FarmServer::RenderServiceImpl final : public v1::RenderService::CallbackSe
     h.what = "blob";
     h.limit = blobs.max_blob_bytes();
     h.limit_option = "--max-blob-mb";
-    h.open = [state, &blobs](const v1::BlobChunk& chunk) {
+    h.open = [this, state, &blobs](const v1::BlobChunk& chunk) {
       state->sha = chunk.sha256();
       state->size = chunk.total_size();
       if (!IsSha256Hex(state->sha))
         throw FarmError(FarmError::Code::kInvalidArgument, "the first chunk must name the blob's SHA-256 (lower-case hex)");
       state->skip = blobs.Has(state->sha);
+      if (!state->skip && c_.storage_full())
+        throw FarmError(FarmError::Code::kResourceExhausted, c_.StorageFullMessage());
       return state->size;
     };
     h.append = [state, &blobs](const std::string& data) {

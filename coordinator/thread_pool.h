@@ -2,6 +2,8 @@
 // never block: database writes, file I/O, planning).
 #pragma once
 
+#include <spdlog/spdlog.h>
+
 #include <condition_variable>
 #include <deque>
 #include <functional>
@@ -50,7 +52,14 @@ class ThreadPool {
         fn = std::move(queue_.front());
         queue_.pop_front();
       }
-      fn();
+      // A task reports its own errors; one that escapes is logged, never the process's end.
+      try {
+        fn();
+      } catch (const std::exception& e) {
+        spdlog::error("background task failed: {}", e.what());
+      } catch (...) {
+        spdlog::error("background task failed with an unknown exception");
+      }
     }
   }
   std::mutex mu_;
