@@ -60,6 +60,12 @@ std::string BlobStore::Quarantine(const std::string& sha256, const std::string& 
   return message;
 }
 
+void BlobStore::CheckIntact(const std::string& sha256) const {
+  if (!Has(sha256)) throw std::out_of_range("blob " + sha256 + " not found");
+  const std::string got = Sha256OfFile(Path(sha256));
+  if (got != sha256) throw BlobCorrupted(Quarantine(sha256, got), sha256);
+}
+
 bool BlobStore::Verify(const std::string& sha256) const {
   if (!Has(sha256)) return false;
   std::string got;
@@ -116,7 +122,7 @@ Bytes BlobStore::Get(const std::string& sha256) const {
   f.read(reinterpret_cast<char*>(data.data()), std::streamsize(data.size()));
   if (!f) throw std::runtime_error("blob store: cannot read " + sha256);
   const std::string got = Sha256Hex(data);
-  if (got != sha256) throw BlobCorrupted(Quarantine(sha256, got));
+  if (got != sha256) throw BlobCorrupted(Quarantine(sha256, got), sha256);
   return data;
 }
 

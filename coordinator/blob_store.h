@@ -19,7 +19,12 @@ namespace lightfarm {
 // A blob whose bytes do not hash to its name; it has been quarantined (what() says where).
 class BlobCorrupted : public std::runtime_error {
  public:
-  using std::runtime_error::runtime_error;
+  BlobCorrupted(const std::string& message, std::string sha256)
+      : std::runtime_error(message), sha256_(std::move(sha256)) {}
+  const std::string& sha256() const { return sha256_; }
+
+ private:
+  std::string sha256_;
 };
 
 class BlobStore {
@@ -38,6 +43,8 @@ class BlobStore {
   // Re-hashes a stored blob: true when it is intact; false when it is missing or was corrupted
   // (then quarantined, logged and counted). For readers that stream the file from Path().
   bool Verify(const std::string& sha256) const;
+  // Verify, throwing BlobCorrupted (std::out_of_range when missing): for readers that copy the file.
+  void CheckIntact(const std::string& sha256) const;
   // Whether a file of `bytes` can be written here now (written to a temporary file and removed):
   // the coordinator's check that space has returned after a full disk.
   bool CanWrite(uint64_t bytes);

@@ -446,11 +446,20 @@ JobResult Coordinator::GetResult(const std::string& job_id) {
   if (!blobs_->Has(job.result_sha))
     throw FarmError(Code::kNotFound, "the result image of job " + job_id + " is missing from the blob store");
   // Re-hashed before it is served: a result whose bytes changed on disk is quarantined and
-  // reported, never streamed as the job's image.
-  if (!blobs_->Verify(job.result_sha))
+  // reported, never streamed as the job's image. A finished job is then made again from its
+  // stored tasks (the same bits: plans are deterministic).
+  if (!blobs_->Verify(job.result_sha)) {
+    const std::string sha = job.result_sha;
+    std::string next = "render the job again";
+    if (job.state == v1::JOB_STATE_DONE && !job.passes.progressive()) {
+      job.result_sha.clear();
+      job.state = v1::JOB_STATE_RUNNING;  // RepairLocked re-plans a running job
+      RepairLocked(job, sha, "its result image is corrupted on the coordinator's disk (quarantined)");
+      if (!IsTerminal(job.state)) next = "it is being made again from its stored tasks; fetch it when it is done";
+    }
     throw FarmError(Code::kDataLoss, "the result image of job " + job_id +
-                                         " is corrupted on the coordinator's disk (blob " + job.result_sha +
-                                         ", quarantined); render the job again");
+                                         " is corrupted on the coordinator's disk (blob " + sha + ", quarantined); " + next);
+  }
   return JobResult{job.stats_json, blobs_->Path(job.result_sha)};
 }
 
@@ -484,8 +493,16 @@ bool Coordinator::Preview(const std::string& job_id, uint64_t have_tiles, JobPre
     id = job.id;
   }
   // Assembled outside the lock.
-  auto preview = std::make_shared<JobPreview>(acc ? job_planner_->Preview(id, acc->Mean(), version)
-                                                  : job_planner_->Preview(id, *plan, done));
+  std::shared_ptr<JobPreview> preview;
+  try {
+    preview = std::make_shared<JobPreview>(acc ? job_planner_->Preview(id, acc->Mean(), version)
+                                               : job_planner_->Preview(id, *plan, done));
+  } catch (const BlobCorrupted& e) {
+    std::lock_guard lock(mu_);
+    auto it = jobs_.find(id);
+    if (it != jobs_.end() && it->second.state == v1::JOB_STATE_RUNNING) RepairLocked(it->second, e.sha256(), e.what());
+    return false;
+  }
   {
     std::lock_guard lock(mu_);
     auto it = jobs_.find(id);
@@ -543,8 +560,8 @@ void Coordinator::CheckLeaseLocked(const std::string& worker_id, const std::stri
   const auto never_granted = [&] {
     return FarmError(Code::kFailedPrecondition, "lease " + lease_id + " was never granted");
   };
-  if (ref.stage > job.stage || ref.stage < 0) throw never_granted();
-  if (job.state != v1::JOB_STATE_RUNNING || ref.stage < job.stage) return;  // over: stale
+  if (ref.stage > std::max(job.stage, job.stage_high) || ref.stage < 0) throw never_granted();
+  if (job.state != v1::JOB_STATE_RUNNING || ref.stage != job.stage) return;  // over (or repaired): stale
   if (ref.task >= job.tasks.size()) throw never_granted();
   const Task& task = job.tasks[ref.task];
   // attempt_row is 0 for tasks restored after a restart: their leases cannot be told apart.
@@ -795,6 +812,64 @@ void Coordinator::FailJobLocked(Job& job, const std::string& error) {
   MaybeStartPlanningLocked();
 }
 
+// --- repair ---------------------------------------------------------------------------------------
+
+void Coordinator::OnBlobCorrupted(const std::string& sha) {
+  std::lock_guard lock(mu_);
+  for (auto& [id, job] : jobs_) {
+    if (job.state != v1::JOB_STATE_RUNNING) continue;  // planning Puts what it needs again
+    bool needed = sha == job.lights_sha || sha == job.receivers_sha || sha == job.artifact_sha;
+    for (const v1::SceneFile& f : job.manifest.files()) needed |= f.sha256() == sha;
+    if (needed) RepairLocked(job, sha, "blob " + sha + " is corrupted on the coordinator's disk (quarantined)");
+  }
+}
+
+void Coordinator::RepairLocked(Job& job, const std::string& sha, const std::string& what) {
+  ++m_repairs_;
+  for (const v1::SceneFile& f : job.manifest.files())
+    if (f.sha256() == sha) {
+      // The user's upload is the only copy: quarantined, it is missing, so a new submit of the
+      // same scene uploads it again.
+      FailJobLocked(job, "scene file \"" + f.path() + "\" is corrupted on the coordinator's disk (blob " + sha +
+                             ", quarantined); submit the job again to upload it again");
+      return;
+    }
+  // The earliest stage whose work makes the blob: a task result of stage s, or the artifact
+  // that combining stage s made (the input of stage s + 1). Light sets and receivers are made
+  // by planning the current stage.
+  int stage = job.stage;
+  try {
+    for (const auto& [s, artifact] : store_->Artifacts(job.id))
+      if (artifact == sha) stage = std::min(stage, s);
+    for (const TaskRecord& r : store_->LoadAllTasks(job.id))
+      if (r.result_sha == sha) stage = std::min(stage, r.stage);
+  } catch (const StorageFull& e) {
+    NoteStorageFull(e.what());
+  }
+  if (++job.repairs > 3 * options_.max_attempts) {
+    FailJobLocked(job, "its blobs were found corrupted " + std::to_string(job.repairs) +
+                           " times (the coordinator's disk is failing?); last: " + what);
+    return;
+  }
+  spdlog::warn("job {}: {}; recomputing it from stage {}", job.id, what, stage);
+  try {
+    store_->SetJobStage(job.id, stage);
+    store_->SetJobState(job.id, v1::JOB_STATE_PLANNING, "");
+  } catch (const StorageFull& e) {
+    NoteStorageFull(e.what());
+  }
+  job.state = v1::JOB_STATE_PLANNING;
+  job.stage = stage;
+  job.tasks.clear();
+  job.next_pending = 0;
+  job.tasks_done = job.done_at_stage_start = 0;
+  job.plan.reset();
+  job.preview.reset();
+  job.advancing = job.advance_paused = false;
+  const int64_t id = job.id;
+  planner_->Submit([this, id] { PlanJob(id); });
+}
+
 // --- planning and stages --------------------------------------------------------------------------
 
 void Coordinator::MaybeStartPlanningLocked() {
@@ -836,6 +911,11 @@ void Coordinator::PlanJob(int64_t id) {
   PlannedStage planned;
   try {
     planned = job_planner_->PlanStage(id, manifest, settings, stage);
+  } catch (const BlobCorrupted& e) {
+    std::lock_guard lock(mu_);
+    Job& job = jobs_.at(id);
+    if (job.state == v1::JOB_STATE_PLANNING) RepairLocked(job, e.sha256(), e.what());
+    return;
   } catch (const std::exception& e) {
     const bool storage = IsStorageFault(e);
     if (storage) NoteStorageFull(e.what());
@@ -851,17 +931,7 @@ void Coordinator::PlanJob(int64_t id) {
     return;
   }
   std::vector<Task> tasks = MakeTasks(planned.specs);
-  for (const TaskRecord& r : planned.records) {
-    if (r.task_id < 0 || size_t(r.task_id) >= tasks.size()) continue;
-    Task& t = tasks[size_t(r.task_id)];
-    t.attempts = r.attempts;
-    t.failures = r.failures;
-    t.last_error = r.last_error;
-    if (r.state == int(TaskStateCode::kDone) && blobs_->Has(r.result_sha)) {
-      t.state = TaskStateCode::kDone;
-      t.result_sha = r.result_sha;
-    }
-  }
+  ApplyRecords(tasks, planned.records);
   const uint64_t attempts = [&] {
     uint64_t n = 0;
     for (const TaskRecord& r : store_->LoadAllTasks(id)) n += uint64_t(r.attempts);
@@ -880,6 +950,7 @@ void Coordinator::PlanJob(int64_t id) {
   job.clamp = planned.plan->matrix_options.clamp;
   job.stage_count = engine.stage_count();
   job.stage_name = engine.stage_name(stage);
+  job.stage_high = std::max(job.stage_high, stage);
   job.tasks = std::move(tasks);
   job.next_pending = 0;
   job.tasks_done = 0;
@@ -898,6 +969,21 @@ void Coordinator::PlanJob(int64_t id) {
   if (job.tasks_done == job.tasks.size()) {
     job.advancing = true;
     planner_->Submit([this, id] { AdvanceStage(id); });
+  }
+}
+
+void Coordinator::ApplyRecords(std::vector<Task>& tasks, const std::vector<TaskRecord>& records) const {
+  for (const TaskRecord& r : records) {
+    if (r.task_id < 0 || size_t(r.task_id) >= tasks.size()) continue;
+    Task& t = tasks[size_t(r.task_id)];
+    t.attempts = r.attempts;
+    t.failures = r.failures;
+    t.last_error = r.last_error;
+    // A result quarantined since is missing: the task runs again.
+    if (r.state == int(TaskStateCode::kDone) && blobs_->Has(r.result_sha)) {
+      t.state = TaskStateCode::kDone;
+      t.result_sha = r.result_sha;
+    }
   }
 }
 
@@ -937,18 +1023,25 @@ void Coordinator::AdvanceStage(int64_t id) {
     Job& job = jobs_.at(id);
     if (job.state != v1::JOB_STATE_RUNNING) return;
     job.stage = stage + 1;
+    job.stage_high = std::max(job.stage_high, job.stage);
     job.stage_name = engine.stage_name(job.stage);
     job.artifact_sha = next.artifact_sha;
     job.tasks = MakeTasks(next.specs);
+    ApplyRecords(job.tasks, next.records);
     job.next_pending = 0;
     job.tasks_done = 0;
-    job.done_at_stage_start = 0;
+    for (const Task& t : job.tasks) job.tasks_done += t.state == TaskStateCode::kDone;
+    job.done_at_stage_start = job.tasks_done;
     job.stage_started = Clock::now();
     job.advancing = false;
-    if (job.tasks.empty()) {
+    if (job.tasks_done == job.tasks.size()) {
       job.advancing = true;
       planner_->Submit([this, id] { AdvanceStage(id); });
     }
+  } catch (const BlobCorrupted& e) {
+    std::lock_guard lock(mu_);
+    Job& job = jobs_.at(id);
+    if (!IsTerminal(job.state)) RepairLocked(job, e.sha256(), e.what());
   } catch (const std::exception& e) {
     const bool storage = IsStorageFault(e);
     if (storage) NoteStorageFull(e.what());

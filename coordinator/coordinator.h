@@ -126,6 +126,10 @@ class Coordinator {
   // Prometheus text exposition.
   std::string MetricsText();
 
+  // A blob was found corrupted (and quarantined) outside the coordinator's own reads (FetchBlob):
+  // the unfinished jobs that need it make it again.
+  void OnBlobCorrupted(const std::string& sha256);
+
   // The state directory is (nearly) full: new work is refused until space returns.
   bool storage_full() const { return storage_full_; }
   std::string StorageFullMessage() const;
@@ -165,6 +169,8 @@ class Coordinator {
     uint64_t attempts_total = 0, completions_total = 0;
     bool advancing = false;
     bool advance_paused = false;  // its stage finished while the disk was full: advanced on recovery
+    int stage_high = 0;           // the highest stage it has run here (a repair may go back)
+    int repairs = 0;              // times a corrupted blob sent it back to recompute
     std::string result_sha, stats_json;
     std::shared_ptr<const JobPreview> preview;  // the latest one computed
     // Progressive jobs (progressive.h): the pass running, the finished ones accumulated, and
@@ -205,6 +211,12 @@ class Coordinator {
   void RecordFailureLocked(Job& job, uint32_t task_id, const std::string& worker,
                            const std::string& reason);
   void FailJobLocked(Job& job, const std::string& error);
+  // Blob `sha` of the job was found corrupted and quarantined: the job goes back to the earliest
+  // stage that makes it again (plans are deterministic: what is recomputed has the same bits); a
+  // scene file cannot be made again, so the job fails asking for it to be submitted again.
+  void RepairLocked(Job& job, const std::string& sha, const std::string& what);
+  // Store rows of a (re)planned stage: tasks done before keep their results while those exist.
+  void ApplyRecords(std::vector<Task>& tasks, const std::vector<TaskRecord>& records) const;
   // Free space under the state directory is below --min-free-mb.
   bool StorageLow() const;
   // A write failed for want of space (or space ran low): new work pauses.
@@ -242,7 +254,7 @@ class Coordinator {
 
   // Counters for /metrics.
   std::atomic<uint64_t> m_leases_{0}, m_completed_{0}, m_duplicates_{0}, m_failed_{0},
-      m_expired_{0}, m_submitted_{0}, m_lease_polls_{0}, m_storage_full_{0};
+      m_expired_{0}, m_submitted_{0}, m_lease_polls_{0}, m_storage_full_{0}, m_repairs_{0};
 };
 
 }  // namespace lightfarm

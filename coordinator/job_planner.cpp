@@ -34,6 +34,8 @@ void JobPlanner::MaterializeScene(const v1::SceneManifest& manifest, const std::
   for (const v1::SceneFile& f : manifest.files()) {
     const fs::path target = fs::path(dir) / f.path();
     fs::create_directories(target.parent_path());
+    // Only a file that still hashes to what was uploaded is parsed (a corrupted one is quarantined).
+    blobs_.CheckIntact(f.sha256());
     fs::copy_file(blobs_.Path(f.sha256()), target, fs::copy_options::overwrite_existing);
   }
 }
@@ -88,6 +90,7 @@ NextStage JobPlanner::CombineStage(int64_t id, const Plan& plan, int stage,
   next.specs = engine.Tasks(stage + 1, artifact);
   store_.InsertTasks(id, stage + 1, int(next.specs.size()));
   store_.SetJobStage(id, stage + 1);
+  next.records = store_.LoadTasks(id, stage + 1);
   return next;
 }
 

@@ -39,6 +39,7 @@ struct PlannedStage {
 struct NextStage {
   std::string artifact_sha;
   std::vector<SubMatrixTask> specs;
+  std::vector<TaskRecord> records;  // a stage recomputed after a repair keeps what it had
 };
 
 // One finished render (a job, or a pass of a progressive job): its image and stats.

@@ -539,9 +539,11 @@ class FarmServer::WorkerServiceImpl final : public v1::WorkerService::CallbackSe
           grpc::Status(grpc::StatusCode::NOT_FOUND, "no blob " + req->sha256().substr(0, 80)));
     // Checked against its name before it is streamed: a corrupted blob is quarantined (and the
     // task that needs it fails, naming the corruption) instead of reaching a worker's cache.
-    if (!c_.blobs().Verify(req->sha256()))
+    if (!c_.blobs().Verify(req->sha256())) {
+      c_.OnBlobCorrupted(req->sha256());  // the jobs that need it make it again
       return new RejectWriteReactor<v1::BlobChunk>(grpc::Status(
           grpc::StatusCode::DATA_LOSS, "blob " + req->sha256() + " is corrupted on the coordinator's disk (quarantined)"));
+    }
     std::string sha = req->sha256();
     uint64_t size = c_.blobs().Size(sha);
     return new FileStreamReactor<v1::BlobChunk>(

@@ -303,7 +303,10 @@ bool Worker::RunOneTask() {
     leased = PrepareTask(lease);
   } catch (const RpcError& e) {
     if (Transient(e.code())) throw;  // the coordinator is away: Run retries, the lease expires
-    ReportFailure(lease.lease_id(), std::string("cannot prepare the task: ") + e.what(), false);
+    // A blob corrupted on the coordinator's disk is not this worker's failure: the task goes
+    // back while the coordinator makes the blob again.
+    const bool theirs = e.code() == grpc::StatusCode::DATA_LOSS;
+    ReportFailure(lease.lease_id(), std::string("cannot prepare the task: ") + e.what(), theirs);
     return true;
   } catch (const std::exception& e) {
     ReportFailure(lease.lease_id(), std::string("cannot prepare the task: ") + e.what(), false);

@@ -5,8 +5,10 @@
 
 #include <filesystem>
 #include <fstream>
+#include <set>
 #include <nlohmann/json.hpp>
 
+#include "common/farm/content_hash.h"
 #include "coordinator/blob_store.h"
 #include "tests/integration/farm_harness.h"
 
@@ -104,13 +106,109 @@ TEST(FarmIntegrity, ACorruptedResultIsNeverServed) {
   EXPECT_NE(fetch.err.find("DATA_LOSS"), std::string::npos) << fetch.err;
   EXPECT_NE(fetch.err.find("corrupted"), std::string::npos) << fetch.err;
   EXPECT_FALSE(fs::exists(dir.Path("again.exr")));
+  EXPECT_NE(fetch.err.find("being made again"), std::string::npos) << fetch.err;
   EXPECT_TRUE(coordinator->process().running());
   EXPECT_EQ(FilesIn(state + "/blobs/quarantine"), 1u);
+  // The job is made again from its stored tasks: the same bits, without a new submit.
+  RenderClient client = coordinator->Client();
+  const v1::JobStatus st = WaitForJob(client, job, [](const v1::JobStatus&) { return false; }, 60);
+  ASSERT_EQ(st.state(), v1::JOB_STATE_DONE) << st.error();
+  CliResult refetch = RunCli(dir, {"fetch", job, "--server", coordinator->address(), "--out", dir.Path("again.exr")});
+  ASSERT_EQ(refetch.exit_code, 0) << refetch.err;
+  EXPECT_TRUE(SameBits(ReadImage(dir.Path("again.exr")), ReadImage(dir.Path("first.exr"))));
   // The same job submitted again renders the same bits (the bad blob is gone, not reused).
   submit[7] = dir.Path("second.exr");
   CliResult second = RunCli(dir, submit);
   ASSERT_EQ(second.exit_code, 0) << second.err;
   EXPECT_TRUE(SameBits(ReadImage(dir.Path("second.exr")), ReadImage(dir.Path("first.exr"))));
+}
+
+// The scene files' blobs, by content hash: what a job uploads of the example scene.
+std::set<std::string> SceneBlobs(const std::string& scene) {
+  std::set<std::string> out;
+  for (const auto& e : fs::recursive_directory_iterator(fs::path(scene).parent_path()))
+    if (e.is_regular_file()) out.insert(Sha256OfFile(e.path().string()));
+  return out;
+}
+
+// A task's result blob changed while the coordinator was down after the job finished, and the
+// result image with it: the image is made again, the task that lost its result is run again on a
+// worker, and the bits are those of the first render.
+TEST(FarmIntegrity, ACorruptedTaskResultIsComputedAgain) {
+  TempDir dir;
+  const std::string state = dir.Path("state");
+  auto coordinator = std::make_unique<CoordinatorProcess>(dir, state, std::vector<std::string>{});
+  const int port = coordinator->port();
+  auto worker = StartWorker(dir, coordinator->address());
+  std::vector<std::string> submit = {"submit", ExampleCornellBox(), "--server", coordinator->address(), "--wait",
+                                     "--quiet", "--out", dir.Path("first.exr"), "--param", "rows_per_slice=64"};
+  submit.insert(submit.end(), kJob.begin(), kJob.end());
+  CliResult first = RunCli(dir, submit);
+  ASSERT_EQ(first.exit_code, 0) << first.err;
+  const std::string job = nlohmann::json::parse(Slurp(dir.Path("first.json")))["farm"]["job_id"];
+  std::string task_sha, result_sha;
+  int64_t tasks = 0;
+  {
+    StateDb db(state + "/state.sqlite");
+    tasks = db.Query("SELECT COUNT(*) FROM tasks WHERE job_id = " + job)[0][0];
+    task_sha = db.QueryText("SELECT result_sha FROM tasks WHERE job_id = " + job + " ORDER BY task_id DESC LIMIT 1");
+    result_sha = db.QueryText("SELECT result_sha FROM jobs WHERE id = " + job);
+  }
+  ASSERT_GE(tasks, 2);
+  coordinator->process().Kill(SIGKILL);
+  coordinator->process().Wait(5);
+  FlipByte(state + "/blobs/" + task_sha);
+  FlipByte(state + "/blobs/" + result_sha);
+  coordinator = std::make_unique<CoordinatorProcess>(dir, state, std::vector<std::string>{}, port);
+  CliResult fetch = RunCli(dir, {"fetch", job, "--server", coordinator->address(), "--out", dir.Path("again.exr")});
+  EXPECT_NE(fetch.err.find("DATA_LOSS"), std::string::npos) << fetch.err;
+  RenderClient client = coordinator->Client();
+  const v1::JobStatus st = WaitForJob(client, job, [](const v1::JobStatus&) { return false; }, 60);
+  ASSERT_EQ(st.state(), v1::JOB_STATE_DONE) << st.error();
+  EXPECT_EQ(int64_t(st.tasks_completed_total()), 1) << "only the task whose result was lost runs again";
+  CliResult refetch = RunCli(dir, {"fetch", job, "--server", coordinator->address(), "--out", dir.Path("again.exr")});
+  ASSERT_EQ(refetch.exit_code, 0) << refetch.err;
+  EXPECT_TRUE(SameBits(ReadImage(dir.Path("again.exr")), ReadImage(dir.Path("first.exr"))));
+  EXPECT_EQ(FilesIn(state + "/blobs/quarantine"), 2u);
+}
+
+// The light set and receivers a running job's workers need changed on the coordinator's disk
+// before any worker fetched them: the fetch is refused (DATA_LOSS), the coordinator plans the job
+// again (which stores them again), the worker hands the task back without counting it as its
+// failure, and the job finishes with the embedded render's bits.
+TEST(FarmIntegrity, ACorruptedLightSetIsMadeAgainAndNoWorkerIsBlamed) {
+  TempDir dir;
+  const std::string state = dir.Path("state");
+  CoordinatorProcess coordinator(dir, state, {});
+  RenderClient client = coordinator.Client();
+  std::vector<std::string> submit = {"submit", ExampleCornellBox(), "--server", coordinator.address()};
+  submit.insert(submit.end(), kJob.begin(), kJob.end());
+  CliResult submitted = RunCli(dir, submit);
+  ASSERT_EQ(submitted.exit_code, 0) << submitted.err;
+  std::string job = submitted.out;
+  while (!job.empty() && job.back() == '\n') job.pop_back();
+  v1::JobStatus st = WaitForJob(client, job, [](const v1::JobStatus& s) { return s.state() == v1::JOB_STATE_RUNNING; }, 60);
+  ASSERT_EQ(st.state(), v1::JOB_STATE_RUNNING) << st.error();
+  const std::set<std::string> scene = SceneBlobs(ExampleCornellBox());
+  size_t flipped = 0;
+  for (const auto& e : fs::directory_iterator(state + "/blobs"))
+    if (e.is_regular_file() && !scene.count(e.path().filename().string())) {
+      FlipByte(e.path().string());
+      ++flipped;
+    }
+  ASSERT_GE(flipped, 2u);  // the light set and the receivers
+  auto worker = StartWorker(dir, coordinator.address());
+  st = WaitForJob(client, job, [](const v1::JobStatus&) { return false; }, 60);
+  ASSERT_EQ(st.state(), v1::JOB_STATE_DONE) << st.error();
+  std::vector<std::string> render = {"render", ExampleCornellBox(), "--quiet", "--out", dir.Path("embedded.exr")};
+  render.insert(render.end(), kJob.begin(), kJob.end());
+  ASSERT_EQ(RunCli(dir, render).exit_code, 0);
+  CliResult fetched = RunCli(dir, {"fetch", job, "--server", coordinator.address(), "--out", dir.Path("farm.exr")});
+  ASSERT_EQ(fetched.exit_code, 0) << fetched.err;
+  EXPECT_TRUE(SameBits(ReadImage(dir.Path("farm.exr")), ReadImage(dir.Path("embedded.exr"))));
+  for (const v1::WorkerStatus& w : client.ListWorkers()) EXPECT_EQ(w.tasks_failed(), 0u) << w.name();
+  EXPECT_GE(FilesIn(state + "/blobs/quarantine"), 1u);
+  EXPECT_NE(coordinator.process().err().find("recomputing"), std::string::npos) << coordinator.process().err();
 }
 
 // Every blob in a worker's cache (scene files, light set, receivers) changed between two jobs: a
