@@ -319,7 +319,10 @@ v1::JobStatus Coordinator::StatusLocked(const Job& job) const {
   for (const v1::SceneFile& f : job.manifest.files())
     if (f.path() == job.manifest.root()) st.set_scene_sha256(f.sha256());
   if (job.passes.progressive()) ProgressiveStatus(job, &st);
-  if (!IsTerminal(job.state) && storage_full_) st.set_waiting(StorageFullMessage());
+  if (!IsTerminal(job.state) && storage_full_)
+    st.set_waiting(StorageFullMessage());
+  else
+    st.set_waiting(WaitingReasonLocked(job));
   return st;
 }
 
@@ -779,6 +782,7 @@ void Coordinator::RecordFailureLocked(Job& job, uint32_t task_id, const std::str
   if (auto w = workers_.find(worker); w != workers_.end()) ++w->second.tasks_failed;
   ++task.failures;
   task.last_error = reason;
+  job.last_failure = reason;
   task.state = TaskStateCode::kPending;
   job.next_pending = std::min<size_t>(job.next_pending, task_id);
   try {
@@ -796,6 +800,48 @@ void Coordinator::RecordFailureLocked(Job& job, uint32_t task_id, const std::str
     FailJobLocked(job, "task " + std::to_string(task_id) + " of stage " + std::to_string(job.stage) +
                            " (" + job.stage_name + ") failed " + std::to_string(task.failures) +
                            " times; last error: " + reason);
+}
+
+void Coordinator::ExpireLocked(Job& job, uint32_t task_id) {
+  Task& task = job.tasks[task_id];
+  ++m_expired_;
+  ++task.expiries;
+  const std::string reason = "lease expired: worker " + task.worker + " sent no heartbeat for " +
+                             std::to_string(options_.lease_timeout_s) + " s";
+  task.last_error = reason;
+  task.state = TaskStateCode::kPending;
+  job.next_pending = std::min<size_t>(job.next_pending, task_id);
+  try {
+    if (task.attempt_row) store_->EndAttempt(task.attempt_row, "expired");
+  } catch (const StorageFull& e) {
+    NoteStorageFull(e.what());
+  }
+  spdlog::warn("job {}: task {} of stage {}: {}", job.id, task_id, job.stage, reason);
+  if (task.expiries >= 3 * options_.max_attempts)
+    FailJobLocked(job, "task " + std::to_string(task_id) + " of stage " + std::to_string(job.stage) + " (" +
+                           job.stage_name + ") lost " + std::to_string(task.expiries) +
+                           " leases without a result (does it crash the worker that runs it?); last: " + reason);
+}
+
+std::string Coordinator::WaitingReasonLocked(const Job& job) const {
+  if (job.state != v1::JOB_STATE_RUNNING || job.advancing) return "";
+  bool pending = false;
+  for (size_t t = job.next_pending; t < job.tasks.size() && !pending; ++t)
+    pending = job.tasks[t].state == TaskStateCode::kPending;
+  if (!pending) return "";
+  const auto now = Clock::now();
+  const auto alive = std::chrono::milliseconds(2 * lease_timeout_ms());
+  size_t live = 0, kept_off = 0;
+  for (const auto& [id, w] : workers_) {
+    if (!w.seen || now - w.last_seen > alive) continue;
+    ++live;
+    const auto f = job.worker_failures.find(id);
+    kept_off += f != job.worker_failures.end() && f->second >= options_.max_attempts;
+  }
+  if (live == 0) return "no live worker is connected";
+  if (kept_off < live) return "";
+  return "every live worker (" + std::to_string(live) + ") failed " + std::to_string(options_.max_attempts) +
+         " tasks of this job and is kept off it; last error: " + job.last_failure;
 }
 
 void Coordinator::FailJobLocked(Job& job, const std::string& error) {
@@ -1230,11 +1276,17 @@ void Coordinator::TickLoop() {
       if (job.state != v1::JOB_STATE_RUNNING) continue;
       for (size_t t = 0; t < job.tasks.size() && job.state == v1::JOB_STATE_RUNNING; ++t) {
         Task& task = job.tasks[t];
-        if (task.state == TaskStateCode::kLeased && task.expiry < now) {
-          ++m_expired_;
-          RecordFailureLocked(job, uint32_t(t), task.worker,
-                              "lease expired: worker " + task.worker + " stopped heartbeating");
-        }
+        if (task.state == TaskStateCode::kLeased && task.expiry < now) ExpireLocked(job, uint32_t(t));
+      }
+      // A job no live worker may run fails once that has lasted two lease timeouts (a worker
+      // restarting on its cache has time to come back); until then `waiting` says why.
+      const std::string reason = job.state == v1::JOB_STATE_RUNNING ? WaitingReasonLocked(job) : "";
+      if (reason.rfind("every live worker", 0) != 0) {
+        job.blocked_since = {};
+      } else if (job.blocked_since == Clock::time_point{}) {
+        job.blocked_since = now;
+      } else if (now - job.blocked_since > std::chrono::milliseconds(2 * lease_timeout_ms())) {
+        FailJobLocked(job, reason);
       }
     }
   }

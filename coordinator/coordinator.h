@@ -141,6 +141,7 @@ class Coordinator {
     size_t rows = 0;
     TaskStateCode state = TaskStateCode::kPending;
     int attempts = 0, failures = 0;
+    int expiries = 0;  // leases that ran out: not counted as failures (a slow network is no evidence)
     std::string worker;
     Clock::time_point expiry;
     int64_t attempt_row = 0;
@@ -171,6 +172,8 @@ class Coordinator {
     bool advance_paused = false;  // its stage finished while the disk was full: advanced on recovery
     int stage_high = 0;           // the highest stage it has run here (a repair may go back)
     int repairs = 0;              // times a corrupted blob sent it back to recompute
+    std::string last_failure;     // the last task failure's reason
+    Clock::time_point blocked_since;  // since when no live worker may run it (epoch: it may run)
     std::string result_sha, stats_json;
     std::shared_ptr<const JobPreview> preview;  // the latest one computed
     // Progressive jobs (progressive.h): the pass running, the finished ones accumulated, and
@@ -210,6 +213,13 @@ class Coordinator {
   void CheckLeaseLocked(const std::string& worker_id, const std::string& lease_id, const LeaseRef& ref);
   void RecordFailureLocked(Job& job, uint32_t task_id, const std::string& worker,
                            const std::string& reason);
+  // A lease ran out: the task goes back to the queue. The worker is not blamed (no evidence it
+  // failed rather than the network); the task fails after 3 * max_attempts expiries (a task
+  // that kills every worker that runs it).
+  void ExpireLocked(Job& job, uint32_t task_id);
+  // Why a running job with tasks to run makes no progress: no live worker, or every live
+  // worker is kept off it (caller holds mu_); empty when some live worker may lease its tasks.
+  std::string WaitingReasonLocked(const Job& job) const;
   void FailJobLocked(Job& job, const std::string& error);
   // Blob `sha` of the job was found corrupted and quarantined: the job goes back to the earliest
   // stage that makes it again (plans are deterministic: what is recomputed has the same bits); a
