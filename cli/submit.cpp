@@ -26,10 +26,12 @@ struct SubmitArgs {
   bool wait = false;
   std::string out, stats;
   bool quiet = false;
+  bool verify = false;
 };
 
 void RunSubmit(const SubmitArgs& a) {
   RenderSettings settings = ToRenderSettings(a.render);
+  settings.verify = a.verify;
   TargetErrorArgs target_args = a.target;
   target_args.lights_given = a.render.lights > 0;
   const TargetErrorPlan target = ApplyTargetError(target_args, a.scene, &settings);
@@ -76,6 +78,8 @@ void AddSubmitCommand(CLI::App& app) {
   cmd->add_option("--out", args->out, "With --wait: write the result EXR (+ PNG, stats JSON)");
   cmd->add_option("--stats", args->stats, "Stats JSON path (default: beside --out)");
   cmd->add_flag("--quiet", args->quiet, "No progress output");
+  cmd->add_flag("--verify", args->verify,
+                "Run every task on two workers and compare their results bit for bit (a third decides)");
   cmd->callback([args] { RunSubmit(*args); });
 }
 

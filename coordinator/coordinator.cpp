@@ -119,7 +119,13 @@ void Coordinator::Start() {
   planner_ = std::make_unique<ThreadPool>(std::max(1, options_.planner_threads));
   std::lock_guard lock(mu_);
   for (const JobStore::WorkerRecord& w : store_->LoadWorkers())
-    workers_[w.id] = WorkerInfo{w.name, w.version, w.threads};
+  {
+    WorkerInfo& info = workers_[w.id];
+    info.name = w.name;
+    info.version = w.version;
+    info.threads = w.threads;
+    info.blocklisted = w.blocklisted;
+  }
   // Every unfinished job is planned again (deterministic) and continues at its stage; the
   // tasks already done keep their results (JobStore), so none is recomputed.
   for (JobRecord& r : store_->LoadJobs()) {
@@ -300,6 +306,7 @@ v1::JobStatus Coordinator::StatusLocked(const Job& job) const {
   st.set_error(ValidUtf8(job.error));
   st.set_attempts(job.attempts_total);
   st.set_tasks_completed_total(job.completions_total);
+  st.set_tasks_verified(job.tasks_verified);
   st.set_eta_s(-1);
   if (job.state == v1::JOB_STATE_RUNNING || job.state == v1::JOB_STATE_PLANNING) {
     const auto now = Clock::now();
@@ -413,6 +420,7 @@ std::vector<v1::WorkerStatus> Coordinator::ListWorkers() {
     st.set_alive(ago < 2.0 * options_.lease_timeout_s);
     st.set_tasks_done(w.tasks_done);
     st.set_tasks_failed(w.tasks_failed);
+    st.set_blocklisted(w.blocklisted);
     // The lease it was granted, while the task is still its own (an expired one was re-queued).
     LeaseRef ref;
     Job* job = nullptr;
@@ -590,6 +598,8 @@ LeaseGrant Coordinator::Lease(const std::string& worker_id) {
   SeenLocked(worker_id);
   WorkerInfo& worker = workers_[worker_id];
   worker.lease.clear();  // a worker asks for a task when it holds none
+  if (!worker.blocklisted.empty())
+    throw FarmError(Code::kFailedPrecondition, "this worker is blocklisted on this farm: " + worker.blocklisted);
   LeaseGrant grant;
   if (draining_ || stopping_ || storage_full_) return grant;  // a full disk: no new work until space returns
   // Highest priority first, then the oldest job; within a job the lowest task id.
@@ -604,9 +614,27 @@ LeaseGrant Coordinator::Lease(const std::string& worker_id) {
     // a lease costs O(1) amortized however many tasks the stage has.
     while (job.next_pending < job.tasks.size() && job.tasks[job.next_pending].state != TaskStateCode::kPending)
       ++job.next_pending;
-    if (job.next_pending < job.tasks.size()) {
+    // A task being verified goes to a worker that has not given a result for it yet; a task
+    // that failed on this worker goes to another one first (one bad worker must not spend a
+    // task's attempts alone), and back to it only when no other worker may run it.
+    size_t retry = job.tasks.size();
+    for (size_t t = job.next_pending; t < job.tasks.size(); ++t) {
+      const Task& task = job.tasks[t];
+      if (task.state != TaskStateCode::kPending) continue;
+      if (std::any_of(task.candidates.begin(), task.candidates.end(),
+                      [&](const auto& c) { return c.first == worker_id; }))
+        continue;
+      if (std::find(task.failed_on.begin(), task.failed_on.end(), worker_id) != task.failed_on.end()) {
+        retry = std::min(retry, t);
+        continue;
+      }
       best = &job;
-      best_task = job.next_pending;
+      best_task = t;
+      break;
+    }
+    if (best != &job && retry < job.tasks.size() && !OtherWorkerMayRunLocked(job, worker_id)) {
+      best = &job;
+      best_task = retry;
     }
   }
   if (!best) return grant;
@@ -680,6 +708,8 @@ bool Coordinator::Complete(const std::string& worker_id, const std::string& leas
       ++m_duplicates_;
       return false;  // a duplicate or stale completion: harmless
     }
+    if (!workers_[worker_id].blocklisted.empty())
+      throw FarmError(Code::kFailedPrecondition, "this worker is blocklisted on this farm: " + workers_[worker_id].blocklisted);
     spec = task->spec;
     plan = job->plan;
     final_stage = job->stage + 1 == job->stage_count;
@@ -695,6 +725,15 @@ bool Coordinator::Complete(const std::string& worker_id, const std::string& leas
       else if (out.row_sums.size() != task.rows.size())  // no plan to say more (never expected)
         problem = "result has " + std::to_string(out.row_sums.size()) + " rows, the task has " +
                   std::to_string(task.rows.size());
+      // Radiance and filter weights are finite: a NaN or infinity is a broken worker, never
+      // a pixel (the film would drop it and show the hole only in its stats).
+      for (size_t i = 0; problem.empty() && i < out.row_sums.size(); ++i) {
+        const RGBAccum& v = out.row_sums[i];
+        if (!std::isfinite(v.r) || !std::isfinite(v.g) || !std::isfinite(v.b))
+          problem = "result row " + std::to_string(i) + " is not finite";
+      }
+      for (size_t i = 0; problem.empty() && i < out.row_weights.size(); ++i)
+        if (!std::isfinite(out.row_weights[i])) problem = "result row weight " + std::to_string(i) + " is not finite";
     }
   } catch (const SerializeError& e) {
     problem = std::string("malformed result: ") + e.what();
@@ -728,6 +767,56 @@ bool Coordinator::Complete(const std::string& worker_id, const std::string& leas
       RecordFailureLocked(*job, ref.task, worker_id, problem);
     throw FarmError(Code::kInvalidArgument, problem);
   }
+  // A verified task is done when two workers' results are the same bits (tasks are
+  // deterministic); until then each result is a candidate and the task goes to another worker.
+  std::vector<std::string> outvoted;
+  if (task->verify && !task->verified) {
+    if (std::any_of(task->candidates.begin(), task->candidates.end(),
+                    [&](const auto& c) { return c.first == worker_id; })) {
+      ++m_duplicates_;
+      return false;
+    }
+    task->candidates.emplace_back(worker_id, sha);
+    std::map<std::string, int> votes;
+    for (const auto& c : task->candidates) ++votes[c.second];
+    std::string agreed;
+    for (const auto& [result, n] : votes)
+      if (n >= 2) agreed = result;
+    const std::string what = "task " + std::to_string(ref.task) + " of stage " + std::to_string(job->stage) +
+                             " of job " + std::to_string(job->id);
+    if (agreed.empty()) {
+      std::string who;
+      for (const auto& c : task->candidates) who += (who.empty() ? "" : ", ") + c.first;
+      if (task->candidates.size() >= 3) {
+        FailJobLocked(*job, what + " gave " + std::to_string(task->candidates.size()) + " different results on workers " +
+                                who + ": its computation is not deterministic, or several workers are faulty");
+        return true;
+      }
+      if (task->candidates.size() == 2) {
+        ++m_mismatches_;
+        spdlog::warn("{}: the results of workers {} differ; a third worker decides", what, who);
+      }
+      try {
+        if (task->attempt_row) store_->EndAttempt(task->attempt_row, "done: awaiting verification");
+      } catch (const StorageFull& e) {
+        NoteStorageFull(e.what());
+      }
+      task->state = TaskStateCode::kPending;
+      task->worker.clear();
+      job->next_pending = std::min<size_t>(job->next_pending, ref.task);
+      ++worker.tasks_done;
+      ++job->completions_total;
+      ++m_completed_;
+      return true;
+    }
+    for (const auto& c : task->candidates)
+      if (c.second != agreed) outvoted.push_back(c.first);
+    sha = agreed;
+    task->verified = true;
+    task->candidates.clear();
+    ++job->tasks_verified;
+    ++m_verified_;
+  }
   try {
     store_->RecordCompletion(job->id,
                             TaskRecord{job->stage, int(ref.task), int(TaskStateCode::kDone), task->attempts,
@@ -743,9 +832,13 @@ bool Coordinator::Complete(const std::string& worker_id, const std::string& leas
   ++job->tasks_done;
   ++job->completions_total;
   ++m_completed_;
-  if (job->tasks_done == job->tasks.size() && !job->advancing) {
-    job->advancing = true;
-    const int64_t id = job->id;
+  const int64_t id = job->id;
+  for (const std::string& liar : outvoted)
+    BlocklistLocked(liar, "its result for task " + std::to_string(ref.task) + " of stage " + std::to_string(ref.stage) +
+                              " of job " + std::to_string(id) + " differed from two other workers' (bit for bit)");
+  Job& same = jobs_.at(id);  // blocklisting may have sent it back to an earlier stage
+  if (same.state == v1::JOB_STATE_RUNNING && same.tasks_done == same.tasks.size() && !same.advancing) {
+    same.advancing = true;
     planner_->Submit([this, id] { AdvanceStage(id); });
   }
   return true;
@@ -782,6 +875,8 @@ void Coordinator::RecordFailureLocked(Job& job, uint32_t task_id, const std::str
   if (auto w = workers_.find(worker); w != workers_.end()) ++w->second.tasks_failed;
   ++task.failures;
   task.last_error = reason;
+  if (std::find(task.failed_on.begin(), task.failed_on.end(), worker) == task.failed_on.end())
+    task.failed_on.push_back(worker);
   job.last_failure = reason;
   task.state = TaskStateCode::kPending;
   job.next_pending = std::min<size_t>(job.next_pending, task_id);
@@ -823,6 +918,17 @@ void Coordinator::ExpireLocked(Job& job, uint32_t task_id) {
                            " leases without a result (does it crash the worker that runs it?); last: " + reason);
 }
 
+bool Coordinator::OtherWorkerMayRunLocked(const Job& job, const std::string& worker_id) const {
+  const auto now = Clock::now();
+  const auto alive = std::chrono::milliseconds(2 * lease_timeout_ms());
+  for (const auto& [id, w] : workers_) {
+    if (id == worker_id || !w.seen || now - w.last_seen > alive || !w.blocklisted.empty()) continue;
+    const auto f = job.worker_failures.find(id);
+    if (f == job.worker_failures.end() || f->second < options_.max_attempts) return true;
+  }
+  return false;
+}
+
 std::string Coordinator::WaitingReasonLocked(const Job& job) const {
   if (job.state != v1::JOB_STATE_RUNNING || job.advancing) return "";
   bool pending = false;
@@ -831,17 +937,30 @@ std::string Coordinator::WaitingReasonLocked(const Job& job) const {
   if (!pending) return "";
   const auto now = Clock::now();
   const auto alive = std::chrono::milliseconds(2 * lease_timeout_ms());
-  size_t live = 0, kept_off = 0;
+  size_t live = 0;
+  std::vector<std::string> usable;  // live, trusted and not kept off this job
   for (const auto& [id, w] : workers_) {
     if (!w.seen || now - w.last_seen > alive) continue;
     ++live;
     const auto f = job.worker_failures.find(id);
-    kept_off += f != job.worker_failures.end() && f->second >= options_.max_attempts;
+    if (w.blocklisted.empty() && (f == job.worker_failures.end() || f->second < options_.max_attempts))
+      usable.push_back(id);
   }
   if (live == 0) return "no live worker is connected";
-  if (kept_off < live) return "";
-  return "every live worker (" + std::to_string(live) + ") failed " + std::to_string(options_.max_attempts) +
-         " tasks of this job and is kept off it; last error: " + job.last_failure;
+  if (usable.empty())
+    return "every live worker (" + std::to_string(live) + ") is blocklisted or failed " +
+           std::to_string(options_.max_attempts) + " tasks of this job and is kept off it; last error: " +
+           (job.last_failure.empty() ? "none" : job.last_failure);
+  // A task being verified waits for a worker that has not given its own result yet.
+  for (size_t t = job.next_pending; t < job.tasks.size(); ++t) {
+    const Task& task = job.tasks[t];
+    if (task.state != TaskStateCode::kPending) continue;
+    for (const std::string& w : usable)
+      if (std::none_of(task.candidates.begin(), task.candidates.end(), [&](const auto& c) { return c.first == w; }))
+        return "";
+  }
+  return "the tasks left are being verified and wait for another live worker (results are compared between "
+         "workers; " + std::to_string(usable.size()) + " may run them and each gave its own)";
 }
 
 void Coordinator::FailJobLocked(Job& job, const std::string& error) {
@@ -871,7 +990,6 @@ void Coordinator::OnBlobCorrupted(const std::string& sha) {
 }
 
 void Coordinator::RepairLocked(Job& job, const std::string& sha, const std::string& what) {
-  ++m_repairs_;
   for (const v1::SceneFile& f : job.manifest.files())
     if (f.sha256() == sha) {
       // The user's upload is the only copy: quarantined, it is missing, so a new submit of the
@@ -897,7 +1015,12 @@ void Coordinator::RepairLocked(Job& job, const std::string& sha, const std::stri
                            " times (the coordinator's disk is failing?); last: " + what);
     return;
   }
-  spdlog::warn("job {}: {}; recomputing it from stage {}", job.id, what, stage);
+  RecomputeFromLocked(job, stage, what);
+}
+
+void Coordinator::RecomputeFromLocked(Job& job, int stage, const std::string& why) {
+  ++m_repairs_;
+  spdlog::warn("job {}: {}; recomputing it from stage {}", job.id, why, stage);
   try {
     store_->SetJobStage(job.id, stage);
     store_->SetJobState(job.id, v1::JOB_STATE_PLANNING, "");
@@ -914,6 +1037,84 @@ void Coordinator::RepairLocked(Job& job, const std::string& sha, const std::stri
   job.advancing = job.advance_paused = false;
   const int64_t id = job.id;
   planner_->Submit([this, id] { PlanJob(id); });
+}
+
+// --- verification ---------------------------------------------------------------------------------
+
+namespace {
+
+// A uniform number in [0, 1) from a task's identity: the same tasks are verified on every run.
+double TaskHash01(int64_t job, int pass, int stage, size_t task) {
+  uint64_t x = uint64_t(job) * 0x9E3779B97F4A7C15ull ^ uint64_t(pass) << 40 ^ uint64_t(stage) << 32 ^ uint64_t(task);
+  x ^= x >> 30;
+  x *= 0xBF58476D1CE4E5B9ull;
+  x ^= x >> 27;
+  x *= 0x94D049BB133111EBull;
+  x ^= x >> 31;
+  return double(x >> 11) * 0x1.0p-53;
+}
+
+}  // namespace
+
+void Coordinator::MarkVerifiedTasksLocked(Job& job) const {
+  for (size_t t = 0; t < job.tasks.size(); ++t)
+    job.tasks[t].verify = job.settings.verify() ||
+                          (options_.verify_share > 0 && TaskHash01(job.id, job.pass, job.stage, t) < options_.verify_share);
+}
+
+void Coordinator::BlocklistLocked(const std::string& liar, const std::string& reason) {
+  WorkerInfo& w = workers_[liar];
+  if (!w.blocklisted.empty()) return;
+  w.blocklisted = reason;
+  spdlog::error("worker {} ({}) is blocklisted: {}; its results for unfinished jobs are computed again", liar,
+                w.name, reason);
+  try {
+    store_->SetWorkerBlocklisted(liar, reason);
+  } catch (const StorageFull& e) {
+    NoteStorageFull(e.what());
+  }
+  for (auto& [id, job] : jobs_) {
+    if (IsTerminal(job.state)) continue;
+    try {
+      // Every result it gave this job that the job kept (stored: earlier stages; in memory: the
+      // current one), except those another worker confirmed.
+      std::set<std::pair<int, int>> mine;
+      for (const auto& st : store_->TasksDoneBy(job.id, liar)) mine.insert(st);
+      if (job.state == v1::JOB_STATE_RUNNING)
+        for (size_t t = 0; t < job.tasks.size(); ++t) {
+          const Task& task = job.tasks[t];
+          if (task.worker == liar && task.state == TaskStateCode::kDone) mine.insert({job.stage, int(t)});
+          if (task.verified) mine.erase({job.stage, int(t)});
+        }
+      if (mine.empty()) continue;
+      int earliest = job.stage;
+      for (const TaskRecord& r : store_->LoadAllTasks(job.id)) {
+        if (!mine.count({r.stage, r.task_id}) || r.state != int(TaskStateCode::kDone)) continue;
+        TaskRecord reset = r;
+        reset.state = int(TaskStateCode::kPending);
+        reset.result_sha.clear();
+        reset.last_error = "result discarded: worker " + liar + " is blocklisted";
+        store_->UpdateTask(job.id, reset);
+        earliest = std::min(earliest, r.stage);
+      }
+      if (earliest < job.stage || job.state != v1::JOB_STATE_RUNNING || job.advancing) {
+        RecomputeFromLocked(job, earliest, "worker " + liar + " is blocklisted");
+        continue;
+      }
+      for (const auto& [stage, t] : mine) {
+        if (stage != job.stage || size_t(t) >= job.tasks.size()) continue;
+        Task& task = job.tasks[size_t(t)];
+        if (task.state != TaskStateCode::kDone) continue;
+        task.state = TaskStateCode::kPending;
+        task.result_sha.clear();
+        task.worker.clear();
+        --job.tasks_done;
+        job.next_pending = std::min<size_t>(job.next_pending, size_t(t));
+      }
+    } catch (const StorageFull& e) {
+      NoteStorageFull(e.what());
+    }
+  }
 }
 
 // --- planning and stages --------------------------------------------------------------------------
@@ -998,6 +1199,7 @@ void Coordinator::PlanJob(int64_t id) {
   job.stage_name = engine.stage_name(stage);
   job.stage_high = std::max(job.stage_high, stage);
   job.tasks = std::move(tasks);
+  MarkVerifiedTasksLocked(job);
   job.next_pending = 0;
   job.tasks_done = 0;
   for (const Task& t : job.tasks) job.tasks_done += t.state == TaskStateCode::kDone;
@@ -1074,6 +1276,7 @@ void Coordinator::AdvanceStage(int64_t id) {
     job.artifact_sha = next.artifact_sha;
     job.tasks = MakeTasks(next.specs);
     ApplyRecords(job.tasks, next.records);
+    MarkVerifiedTasksLocked(job);
     job.next_pending = 0;
     job.tasks_done = 0;
     for (const Task& t : job.tasks) job.tasks_done += t.state == TaskStateCode::kDone;
@@ -1331,6 +1534,11 @@ std::string Coordinator::MetricsText() {
   gauge("lightfarm_storage_full", "1 while the state directory is too full to take new work.", storage_full_ ? 1 : 0);
   counter("lightfarm_storage_full_total", "Times the state directory filled up (writes refused or space below --min-free-mb).",
           m_storage_full_);
+  counter("lightfarm_tasks_verified_total", "Tasks whose result two workers agreed on bit for bit.", m_verified_);
+  counter("lightfarm_verification_mismatches_total", "Verified tasks whose first two results differed.",
+          m_mismatches_);
+  counter("lightfarm_job_repairs_total", "Times a corrupted blob or a blocklisted worker sent a job back to recompute.",
+          m_repairs_);
   counter("lightfarm_blobs_corrupted_total", "Blobs found corrupted on the coordinator's disk and quarantined.",
           blobs_->corrupted());
   return os.str();

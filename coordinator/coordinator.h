@@ -52,6 +52,9 @@ struct CoordinatorOptions {
   // A storage fault pauses the work that writes until space returns (a farm); false: it is an
   // ordinary error that fails the job (an embedded render).
   bool wait_for_space = true;
+  // The share of tasks (chosen by a hash of job, pass, stage and task) run on a second worker
+  // and compared bit for bit; a job's own `verify` asks for all of its tasks.
+  double verify_share = 0;
   // Start an empty farm on a state directory whose database is missing or empty although it
   // holds blobs (otherwise refused: the jobs those blobs belong to would be forgotten).
   bool fresh_state = false;
@@ -146,6 +149,10 @@ class Coordinator {
     Clock::time_point expiry;
     int64_t attempt_row = 0;
     std::string result_sha, last_error;
+    bool verify = false;    // needs two workers' results, equal to the bit
+    bool verified = false;  // it got them
+    std::vector<std::pair<std::string, std::string>> candidates;  // (worker, result) not yet agreed on
+    std::vector<std::string> failed_on;  // workers it failed on: retried elsewhere first
   };
   struct Job {
     int64_t id = 0;
@@ -173,6 +180,7 @@ class Coordinator {
     int stage_high = 0;           // the highest stage it has run here (a repair may go back)
     int repairs = 0;              // times a corrupted blob sent it back to recompute
     std::string last_failure;     // the last task failure's reason
+    uint64_t tasks_verified = 0;  // tasks two workers agreed on (every stage and pass)
     Clock::time_point blocked_since;  // since when no live worker may run it (epoch: it may run)
     std::string result_sha, stats_json;
     std::shared_ptr<const JobPreview> preview;  // the latest one computed
@@ -192,6 +200,7 @@ class Coordinator {
     Clock::time_point last_seen;
     std::string lease;  // the lease it holds, if any
     uint64_t tasks_done = 0, tasks_failed = 0;
+    std::string blocklisted;  // why it may run nothing here (outvoted); empty: trusted
   };
   // A call from a known worker (caller holds mu_).
   void SeenLocked(const std::string& worker_id);
@@ -220,11 +229,21 @@ class Coordinator {
   // Why a running job with tasks to run makes no progress: no live worker, or every live
   // worker is kept off it (caller holds mu_); empty when some live worker may lease its tasks.
   std::string WaitingReasonLocked(const Job& job) const;
+  // Some live, trusted worker other than `worker_id` may lease the job's tasks.
+  bool OtherWorkerMayRunLocked(const Job& job, const std::string& worker_id) const;
   void FailJobLocked(Job& job, const std::string& error);
   // Blob `sha` of the job was found corrupted and quarantined: the job goes back to the earliest
   // stage that makes it again (plans are deterministic: what is recomputed has the same bits); a
   // scene file cannot be made again, so the job fails asking for it to be submitted again.
   void RepairLocked(Job& job, const std::string& sha, const std::string& what);
+  // The job goes back to `stage` (planned again; tasks keep the stored results they still have).
+  void RecomputeFromLocked(Job& job, int stage, const std::string& why);
+  // Marks the tasks of the job's current stage that are verified (the job's verify, or the
+  // --verify-share hash).
+  void MarkVerifiedTasksLocked(Job& job) const;
+  // A worker whose result two others outvoted runs nothing more here, and every result it gave
+  // an unfinished job is computed again.
+  void BlocklistLocked(const std::string& worker, const std::string& reason);
   // Store rows of a (re)planned stage: tasks done before keep their results while those exist.
   void ApplyRecords(std::vector<Task>& tasks, const std::vector<TaskRecord>& records) const;
   // Free space under the state directory is below --min-free-mb.
@@ -264,7 +283,8 @@ class Coordinator {
 
   // Counters for /metrics.
   std::atomic<uint64_t> m_leases_{0}, m_completed_{0}, m_duplicates_{0}, m_failed_{0},
-      m_expired_{0}, m_submitted_{0}, m_lease_polls_{0}, m_storage_full_{0}, m_repairs_{0};
+      m_expired_{0}, m_submitted_{0}, m_lease_polls_{0}, m_storage_full_{0}, m_repairs_{0},
+      m_verified_{0}, m_mismatches_{0};
 };
 
 }  // namespace lightfarm

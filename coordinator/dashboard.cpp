@@ -62,6 +62,8 @@ json JobJson(const v1::JobStatus& st) {
             {"attempts", st.attempts()},
             {"tasks_completed_total", st.tasks_completed_total()},
             {"error", st.error()},
+            {"waiting", st.waiting()},
+            {"tasks_verified", st.tasks_verified()},
             {"progressive", st.progressive()}};
   if (st.progressive()) {
     j["passes_done"] = st.passes_done();
@@ -83,7 +85,8 @@ json WorkerJson(const v1::WorkerStatus& w) {
           {"alive", w.alive()},
           {"tasks_done", w.tasks_done()},
           {"tasks_failed", w.tasks_failed()},
-          {"blocked_jobs", std::vector<std::string>(w.blocked_jobs().begin(), w.blocked_jobs().end())}};
+          {"blocked_jobs", std::vector<std::string>(w.blocked_jobs().begin(), w.blocked_jobs().end())},
+          {"blocklisted", w.blocklisted()}};
 }
 
 int HttpStatusOf(FarmError::Code code) {

@@ -150,6 +150,12 @@ void JobStore::Initialize(const std::string& path) {
     while (columns.Step()) has_threads |= columns.Str(1) == "threads";
     if (!has_threads) Exec("ALTER TABLE workers ADD COLUMN threads INTEGER DEFAULT 0");
   }
+  {
+    bool has_blocklisted = false;  // state directories from before result verification
+    Stmt columns(db_, "PRAGMA table_info(workers)");
+    while (columns.Step()) has_blocklisted |= columns.Str(1) == "blocklisted";
+    if (!has_blocklisted) Exec("ALTER TABLE workers ADD COLUMN blocklisted TEXT DEFAULT ''");
+  }
 }
 
 JobStore::~JobStore() {
@@ -367,9 +373,23 @@ void JobStore::UpsertWorker(const WorkerRecord& w) {
 
 std::vector<JobStore::WorkerRecord> JobStore::LoadWorkers() {
   std::lock_guard lock(mu_);
-  Stmt s(db_, "SELECT id, name, version, threads FROM workers");
+  Stmt s(db_, "SELECT id, name, version, threads, blocklisted FROM workers");
   std::vector<WorkerRecord> out;
-  while (s.Step()) out.push_back(WorkerRecord{s.Str(0), s.Str(1), s.Str(2), int(s.Int(3))});
+  while (s.Step()) out.push_back(WorkerRecord{s.Str(0), s.Str(1), s.Str(2), int(s.Int(3)), s.Str(4)});
+  return out;
+}
+
+void JobStore::SetWorkerBlocklisted(const std::string& id, const std::string& reason) {
+  std::lock_guard lock(mu_);
+  Stmt(db_, "UPDATE workers SET blocklisted = ? WHERE id = ?").Bind(reason).Bind(id).Step();
+}
+
+std::vector<std::pair<int, int>> JobStore::TasksDoneBy(int64_t job, const std::string& worker) {
+  std::lock_guard lock(mu_);
+  Stmt s(db_, "SELECT DISTINCT stage, task_id FROM attempts WHERE job_id = ? AND worker_id = ? AND outcome = 'done'");
+  s.Bind(job).Bind(worker);
+  std::vector<std::pair<int, int>> out;
+  while (s.Step()) out.emplace_back(int(s.Int(0)), int(s.Int(1)));
   return out;
 }
 

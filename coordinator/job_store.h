@@ -80,8 +80,12 @@ class JobStore {
   struct WorkerRecord {
     std::string id, name, version;
     int threads = 0;
+    std::string blocklisted;  // why it may run nothing here; empty: trusted
   };
   void UpsertWorker(const WorkerRecord& worker);
+  void SetWorkerBlocklisted(const std::string& id, const std::string& reason);
+  // (stage, task) of every task of the job whose result `worker` delivered and the job kept.
+  std::vector<std::pair<int, int>> TasksDoneBy(int64_t job, const std::string& worker);
   std::vector<WorkerRecord> LoadWorkers();
 
  private:

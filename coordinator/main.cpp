@@ -55,6 +55,9 @@ int main(int argc, char** argv) {
       ->check(lightfarm::FiniteRange(0.0, 1e9));
   app.add_flag("--fresh-state", opt.fresh_state,
                "Start an empty farm even though --state-dir holds blobs and its database is missing or empty");
+  app.add_option("--verify-share", opt.verify_share,
+                 "Share of tasks run on a second worker and compared bit for bit (0..1; a job's --verify: all)")
+      ->check(lightfarm::FiniteRange(0.0, 1.0));
   app.add_option("--rpc-threads", server.rpc_threads, "Threads serving RPCs")->check(CLI::Range(1, 256));
   app.add_option("--drain-seconds", drain_s, "Grace period for in-flight RPCs on SIGTERM")
       ->check(lightfarm::FiniteRange(0.0, 86400.0));

@@ -13,6 +13,7 @@ v1::RenderSettings ToProto(const RenderSettings& s) {
   p.set_seed(s.seed);
   for (const std::string& kv : s.params) p.add_params(kv);
   p.set_method_rule(s.method_rule);
+  p.set_verify(s.verify);
   if (s.progressive.progressive()) {
     p.set_passes(s.progressive.passes);
     p.set_until_noise(s.progressive.until_noise);
@@ -32,6 +33,7 @@ RenderSettings FromProto(const v1::RenderSettings& p) {
   s.seed = p.seed();
   s.params.assign(p.params().begin(), p.params().end());
   s.method_rule = p.method_rule();
+  s.verify = p.verify();
   s.progressive.until_noise = p.until_noise();
   s.progressive.time_limit_s = p.time_limit_s();
   s.progressive.passes = p.passes() > 0 ? p.passes()

@@ -36,6 +36,8 @@ struct RenderSettings {
   // A progressive job's passes (progressive.h): the farm runs each with PassSeed(seed, pass).
   // Everything else here renders one pass.
   PassPlan progressive;
+  // Farm jobs: every task run on two workers and compared bit for bit (docs/operations.md).
+  bool verify = false;
 };
 
 // Everything a gather needs, built once per job (deterministic in the job seed).

@@ -233,6 +233,9 @@ async function jobView(view, id) {
   show(view, 
     el("h1", {}, "Job " + id + " ", el("span", {id: "job-name", class: "muted"}, j.name)),
     j.error && j.state !== "cancelled" ? el("p", {id: "job-error", class: "error"}, j.error) : null,
+    j.waiting ? el("p", {id: "job-waiting", class: "error"}, "Waiting: " + j.waiting) : null,
+    j.tasks_verified ? el("p", {id: "job-verified", class: "muted"},
+                          j.tasks_verified + " tasks verified on a second worker, bit for bit") : null,
     controls,
     el("div", {class: "cols"}, el("div", {}, info, el("h2", {}, "Stages"), stages, benchLink,
                                   stats ? el("h2", {}, "Stats") : null, stats), image));
@@ -252,7 +255,8 @@ async function workersView(view) {
                  w.lease_id ? " (" + w.lease_id + ")" : ""),
         el("td", {class: "num"}, seconds(w.last_seen_s) + " ago" + (w.alive ? "" : " (lost)")),
         el("td", {class: "num"}, w.tasks_done), el("td", {class: "num"}, w.tasks_failed),
-        el("td", {}, ...w.blocked_jobs.map((b) => el("a", {href: "/jobs/" + b}, b + " "))))))));
+        el("td", {}, w.blocklisted ? el("span", {class: "error"}, "blocklisted: " + w.blocklisted + " ") : "",
+                 ...w.blocked_jobs.map((b) => el("a", {href: "/jobs/" + b}, b + " "))))))));
 }
 
 // Error against time on log-log axes, one colour per method: what accuracy costs.

@@ -99,7 +99,7 @@ TEST(FarmStorage, AFullDiskRefusesNewWorkAndTheAcceptedJobFinishesWhenSpaceRetur
   ASSERT_GT(filled, 0u);
   auto worker = StartWorker(dir, coordinator.address());
   // The worker's result cannot be stored: the coordinator says why and stays up.
-  st = WaitForJob(client, job, [](const v1::JobStatus& s) { return !s.waiting().empty(); }, 60);
+  st = WaitForJob(client, job, [](const v1::JobStatus& s) { return s.waiting().find("disk is full") != std::string::npos; }, 60);
   EXPECT_NE(st.waiting().find("disk is full"), std::string::npos) << st.DebugString();
   EXPECT_EQ(st.state(), v1::JOB_STATE_RUNNING);
   std::this_thread::sleep_for(std::chrono::seconds(3));  // beyond the lease timeout: nothing fails
