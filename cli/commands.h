@@ -15,6 +15,7 @@ void AddSubmitCommand(CLI::App& app);
 void AddStatusCommand(CLI::App& app);
 void AddWatchCommand(CLI::App& app);
 void AddCancelCommand(CLI::App& app);
+void AddDeleteCommand(CLI::App& app);
 void AddPriorityCommand(CLI::App& app);
 void AddWorkersCommand(CLI::App& app);
 void AddFetchCommand(CLI::App& app);

@@ -24,6 +24,7 @@ int main(int argc, char** argv) {
   lightfarm::cli::AddStatusCommand(app);
   lightfarm::cli::AddWatchCommand(app);
   lightfarm::cli::AddCancelCommand(app);
+  lightfarm::cli::AddDeleteCommand(app);
   lightfarm::cli::AddPriorityCommand(app);
   lightfarm::cli::AddWorkersCommand(app);
   lightfarm::cli::AddFetchCommand(app);

@@ -79,9 +79,37 @@ bool BlobStore::Verify(const std::string& sha256) const {
   return false;
 }
 
+void BlobStore::Touch(const std::string& sha256) {
+  std::error_code ec;
+  fs::last_write_time(Path(sha256), fs::file_time_type::clock::now(), ec);
+}
+
+std::vector<BlobStore::Entry> BlobStore::List() const {
+  std::vector<Entry> out;
+  std::error_code ec;
+  for (auto it = fs::directory_iterator(dir_, ec); !ec && it != fs::directory_iterator(); it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    std::error_code e2;
+    if (!IsSha256Hex(name) || !it->is_regular_file(e2)) continue;
+    Entry entry{name, uint64_t(it->file_size(e2)), it->last_write_time(e2)};
+    if (!e2) out.push_back(std::move(entry));
+  }
+  return out;
+}
+
+uint64_t BlobStore::Remove(const std::string& sha256) {
+  std::error_code ec;
+  const uint64_t size = fs::file_size(Path(sha256), ec);
+  if (ec) return 0;
+  return fs::remove(Path(sha256), ec) ? size : 0;
+}
+
 std::string BlobStore::Put(ByteView bytes) {
   std::string sha = Sha256Hex(bytes);
-  if (Verify(sha)) return sha;
+  if (Verify(sha)) {
+    Touch(sha);  // in use again: not collected within the grace period
+    return sha;
+  }
   std::string tmp = TempPath();
   {
     errno = 0;

@@ -5,6 +5,8 @@
 #pragma once
 
 #include <atomic>
+#include <filesystem>
+#include <vector>
 #include <cstdint>
 #include <fstream>
 #include <memory>
@@ -34,7 +36,7 @@ class BlobStore {
   bool Has(const std::string& sha256) const;
   std::string Path(const std::string& sha256) const { return dir_ + "/" + sha256; }
   uint64_t Size(const std::string& sha256) const;  // throws if missing
-  // Stores bytes, returns their hash (no-op when present and intact; a corrupted copy is
+  // Stores bytes, returns their hash (when present and intact only touched; a corrupted copy is
   // quarantined and replaced).
   std::string Put(ByteView bytes);
   // Throws std::out_of_range when missing, BlobCorrupted (after quarantining it) when its bytes
@@ -45,6 +47,17 @@ class BlobStore {
   bool Verify(const std::string& sha256) const;
   // Verify, throwing BlobCorrupted (std::out_of_range when missing): for readers that copy the file.
   void CheckIntact(const std::string& sha256) const;
+  // Marks a stored blob as just used: the collection's grace period counts from it.
+  void Touch(const std::string& sha256);
+  struct Entry {
+    std::string sha256;
+    uint64_t size = 0;
+    std::filesystem::file_time_type written;  // written or last touched
+  };
+  // Every stored blob (not the quarantined or temporary files).
+  std::vector<Entry> List() const;
+  // Removes a stored blob; its size, or 0 when it was not there.
+  uint64_t Remove(const std::string& sha256);
   // Whether a file of `bytes` can be written here now (written to a temporary file and removed):
   // the coordinator's check that space has returned after a full disk.
   bool CanWrite(uint64_t bytes);

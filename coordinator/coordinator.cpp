@@ -64,6 +64,10 @@ double Seconds(std::chrono::steady_clock::duration d) {
   return std::chrono::duration<double>(d).count();
 }
 
+double UnixNow() {
+  return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
+}
+
 std::string RandomId() {
   std::random_device rd;
   std::ostringstream os;
@@ -140,6 +144,7 @@ void Coordinator::Start() {
     job.error = r.error;
     job.result_sha = r.result_sha;
     job.stats_json = r.stats_json;
+    job.ended_unix = r.finished > 0 ? r.finished : r.created;
     job.passes = FromProto(job.settings).progressive;
     if (job.passes.progressive()) {
       PassAccumulator acc;
@@ -170,6 +175,7 @@ void Coordinator::Start() {
   }
   MaybeStartPlanningLocked();
   ticker_ = std::thread([this] { TickLoop(); });
+  upkeep_ = std::thread([this] { UpkeepLoop(); });
 }
 
 void Coordinator::Stop() {
@@ -180,6 +186,7 @@ void Coordinator::Stop() {
   }
   tick_cv_.notify_all();
   if (ticker_.joinable()) ticker_.join();
+  if (upkeep_.joinable()) upkeep_.join();
   if (planner_) planner_->Stop();
 }
 
@@ -189,7 +196,10 @@ std::vector<std::string> Coordinator::FindMissingBlobs(const std::vector<std::st
   std::vector<std::string> missing;
   for (const std::string& h : hashes) {
     if (!IsSha256Hex(h)) throw FarmError(Code::kInvalidArgument, "not a SHA-256 hex digest: \"" + h.substr(0, 80) + "\"");
-    if (!blobs_->Has(h)) missing.push_back(h);
+    if (!blobs_->Has(h))
+      missing.push_back(h);
+    else
+      blobs_->Touch(h);  // the submit that follows needs it: kept through the collection's grace period
   }
   return missing;
 }
@@ -197,6 +207,8 @@ std::vector<std::string> Coordinator::FindMissingBlobs(const std::vector<std::st
 std::string Coordinator::Submit(const v1::SubmitJobRequest& req) {
   if (draining_) throw FarmError(Code::kUnavailable, "coordinator is shutting down; submit again later");
   if (storage_full_ || StorageLow()) throw FarmError(Code::kResourceExhausted, StorageFullMessage());
+  // From the check that its files are stored to the job's insertion, no collection runs.
+  std::lock_guard gc(gc_mu_);
   // Validate the manifest: every file uploaded, every path inside the scene directory.
   const v1::SceneManifest& m = req.scene();
   if (m.files_size() == 0) throw FarmError(Code::kInvalidArgument, "the scene manifest lists no files");
@@ -376,6 +388,7 @@ v1::JobStatus Coordinator::Cancel(const std::string& job_id) {
     store_->SetJobState(job.id, v1::JOB_STATE_CANCELLED, "cancelled");  // a full disk: refused, unchanged
     job.state = v1::JOB_STATE_CANCELLED;
     job.ended = Clock::now();
+    job.ended_unix = UnixNow();
     job.error = "cancelled";
     job.plan.reset();
     spdlog::info("job {}: cancelled", job.id);
@@ -966,6 +979,7 @@ std::string Coordinator::WaitingReasonLocked(const Job& job) const {
 void Coordinator::FailJobLocked(Job& job, const std::string& error) {
   job.state = v1::JOB_STATE_FAILED;
   job.ended = Clock::now();
+  job.ended_unix = UnixNow();
   job.error = error;
   job.plan.reset();
   try {
@@ -982,6 +996,13 @@ void Coordinator::FailJobLocked(Job& job, const std::string& error) {
 void Coordinator::OnBlobCorrupted(const std::string& sha) {
   std::lock_guard lock(mu_);
   for (auto& [id, job] : jobs_) {
+    // A finished job's image is made again from its stored tasks before anyone asks for it.
+    if (job.state == v1::JOB_STATE_DONE && job.result_sha == sha && !job.passes.progressive()) {
+      job.result_sha.clear();
+      job.state = v1::JOB_STATE_RUNNING;
+      RepairLocked(job, sha, "its result image is corrupted on the coordinator's disk (quarantined)");
+      continue;
+    }
     if (job.state != v1::JOB_STATE_RUNNING) continue;  // planning Puts what it needs again
     bool needed = sha == job.lights_sha || sha == job.receivers_sha || sha == job.artifact_sha;
     for (const v1::SceneFile& f : job.manifest.files()) needed |= f.sha256() == sha;
@@ -1149,7 +1170,9 @@ void Coordinator::PlanJob(int64_t id) {
   int stage = 0;
   {
     std::lock_guard lock(mu_);
-    Job& job = jobs_.at(id);
+    auto found = jobs_.find(id);
+    if (found == jobs_.end()) return;  // deleted meanwhile
+    Job& job = found->second;
     if (job.state != v1::JOB_STATE_PLANNING) return;  // cancelled meanwhile
     manifest = job.manifest;
     settings = PassSettings(job);
@@ -1160,14 +1183,18 @@ void Coordinator::PlanJob(int64_t id) {
     planned = job_planner_->PlanStage(id, manifest, settings, stage);
   } catch (const BlobCorrupted& e) {
     std::lock_guard lock(mu_);
-    Job& job = jobs_.at(id);
+    auto found = jobs_.find(id);
+    if (found == jobs_.end()) return;  // deleted meanwhile
+    Job& job = found->second;
     if (job.state == v1::JOB_STATE_PLANNING) RepairLocked(job, e.sha256(), e.what());
     return;
   } catch (const std::exception& e) {
     const bool storage = IsStorageFault(e);
     if (storage) NoteStorageFull(e.what());
     std::lock_guard lock(mu_);
-    Job& job = jobs_.at(id);
+    auto found = jobs_.find(id);
+    if (found == jobs_.end()) return;  // deleted meanwhile
+    Job& job = found->second;
     if (job.state != v1::JOB_STATE_PLANNING) return;
     if (storage) {
       job.state = v1::JOB_STATE_QUEUED;  // planned again when space returns
@@ -1186,7 +1213,9 @@ void Coordinator::PlanJob(int64_t id) {
   }();
 
   std::lock_guard lock(mu_);
-  Job& job = jobs_.at(id);
+  auto found = jobs_.find(id);
+  if (found == jobs_.end()) return;  // deleted meanwhile
+  Job& job = found->second;
   if (job.state != v1::JOB_STATE_PLANNING) return;
   const StageEngine engine(*planned.plan);
   job.plan = planned.plan;
@@ -1253,7 +1282,9 @@ void Coordinator::AdvanceStage(int64_t id) {
   std::vector<std::string> results;
   {
     std::lock_guard lock(mu_);
-    Job& job = jobs_.at(id);
+    auto found = jobs_.find(id);
+    if (found == jobs_.end()) return;  // deleted meanwhile
+    Job& job = found->second;
     if (job.state != v1::JOB_STATE_RUNNING || !job.plan) return;
     plan = job.plan;
     stage = job.stage;
@@ -1268,7 +1299,9 @@ void Coordinator::AdvanceStage(int64_t id) {
     }
     NextStage next = job_planner_->CombineStage(id, *plan, stage, results);
     std::lock_guard lock(mu_);
-    Job& job = jobs_.at(id);
+    auto found = jobs_.find(id);
+    if (found == jobs_.end()) return;  // deleted meanwhile
+    Job& job = found->second;
     if (job.state != v1::JOB_STATE_RUNNING) return;
     job.stage = stage + 1;
     job.stage_high = std::max(job.stage_high, job.stage);
@@ -1289,13 +1322,17 @@ void Coordinator::AdvanceStage(int64_t id) {
     }
   } catch (const BlobCorrupted& e) {
     std::lock_guard lock(mu_);
-    Job& job = jobs_.at(id);
+    auto found = jobs_.find(id);
+    if (found == jobs_.end()) return;  // deleted meanwhile
+    Job& job = found->second;
     if (!IsTerminal(job.state)) RepairLocked(job, e.sha256(), e.what());
   } catch (const std::exception& e) {
     const bool storage = IsStorageFault(e);
     if (storage) NoteStorageFull(e.what());
     std::lock_guard lock(mu_);
-    Job& job = jobs_.at(id);
+    auto found = jobs_.find(id);
+    if (found == jobs_.end()) return;  // deleted meanwhile
+    Job& job = found->second;
     if (IsTerminal(job.state)) return;
     if (storage) {
       // The stage's results are all stored: it is combined (or the film made) when space returns.
@@ -1326,7 +1363,9 @@ void Coordinator::FinishJob(int64_t id, std::shared_ptr<Plan> plan, int final_st
   std::shared_ptr<const PassAccumulator> acc;
   {
     std::lock_guard lock(mu_);
-    Job& job = jobs_.at(id);
+    auto found = jobs_.find(id);
+    if (found == jobs_.end()) return;  // deleted meanwhile
+    Job& job = found->second;
     for (const Task& t : job.tasks) specs.push_back(t.spec);
     times = job.times;
     pass_started = job.pass_started;
@@ -1352,7 +1391,9 @@ void Coordinator::FinishJob(int64_t id, std::shared_ptr<Plan> plan, int final_st
     acc = std::move(next);
   }
   std::lock_guard lock(mu_);
-  Job& job = jobs_.at(id);
+  auto found = jobs_.find(id);
+  if (found == jobs_.end()) return;  // deleted meanwhile
+  Job& job = found->second;
   job.result_sha = finished.result_sha;
   job.stats_json = finished.stats_json;
   job.plan.reset();
@@ -1385,8 +1426,126 @@ void Coordinator::FinishJob(int64_t id, std::shared_ptr<Plan> plan, int final_st
   }
   job.state = v1::JOB_STATE_DONE;
   job.ended = Clock::now();
+  job.ended_unix = UnixNow();
   spdlog::info("job {}: done ({} tasks, {} attempts)", id, finished.tasks, finished.attempts);
   MaybeStartPlanningLocked();
+}
+
+// --- deletion and storage upkeep ---------------------------------------------------------------------
+
+void Coordinator::Delete(const std::string& job_id) {
+  int64_t id = 0;
+  {
+    std::lock_guard lock(mu_);
+    Job& job = FindJob(job_id);
+    id = job.id;
+    store_->DeleteJob(id);  // first: a full disk refuses the delete and changes nothing
+    if (!IsTerminal(job.state)) spdlog::info("job {}: cancelled to be deleted", id);
+    jobs_.erase(id);  // planning in flight finds it gone and stops; stale leases are NOT_FOUND
+    ++m_deleted_;
+    spdlog::info("job {}: deleted", id);
+    MaybeStartPlanningLocked();
+  }
+  std::error_code ec;
+  fs::remove_all(options_.state_dir + "/jobs/" + std::to_string(id), ec);
+  tick_cv_.notify_all();  // the upkeep thread collects its blobs (after their grace period)
+}
+
+size_t Coordinator::CollectGarbage() {
+  std::lock_guard gc(gc_mu_);
+  std::set<std::string> live;
+  {
+    std::lock_guard lock(mu_);
+    for (const auto& [id, job] : jobs_) {
+      for (const v1::SceneFile& f : job.manifest.files()) live.insert(f.sha256());
+      for (const std::string* sha : {&job.result_sha, &job.lights_sha, &job.receivers_sha, &job.artifact_sha})
+        if (!sha->empty()) live.insert(*sha);
+      for (const Task& t : job.tasks) {
+        if (!t.result_sha.empty()) live.insert(t.result_sha);
+        for (const auto& c : t.candidates) live.insert(c.second);
+      }
+    }
+  }
+  // The store's names (task results, artifacts, accumulations of every kept job) after the
+  // jobs' own: a job deleted in between only leaves more to collect next time. Rows a planner
+  // wrote for a job deleted while it worked go first.
+  store_->DeleteOrphans();
+  for (std::string& sha : store_->ReferencedBlobs()) live.insert(std::move(sha));
+  const auto cutoff = fs::file_time_type::clock::now() -
+                      std::chrono::duration_cast<fs::file_time_type::duration>(
+                          std::chrono::duration<double>(options_.gc_grace_s));
+  size_t removed = 0;
+  uint64_t bytes = 0;
+  for (const BlobStore::Entry& e : blobs_->List()) {
+    if (live.count(e.sha256) || e.written > cutoff) continue;
+    bytes += blobs_->Remove(e.sha256);
+    ++removed;
+  }
+  m_gc_removed_ += removed;
+  m_gc_removed_bytes_ += bytes;
+  if (removed) spdlog::info("blob store: collected {} blobs no job uses ({} MiB)", removed, bytes >> 20);
+  return removed;
+}
+
+void Coordinator::ApplyRetention() {
+  if (options_.retain_finished_s <= 0) return;
+  std::vector<std::string> expired;
+  {
+    std::lock_guard lock(mu_);
+    const double now = UnixNow();
+    for (const auto& [id, job] : jobs_)
+      if (IsTerminal(job.state) && job.ended_unix > 0 && now - job.ended_unix > options_.retain_finished_s)
+        expired.push_back(std::to_string(id));
+  }
+  for (const std::string& id : expired) {
+    try {
+      Delete(id);
+      spdlog::info("job {}: deleted by the retention policy (--retain-finished-s {})", id, options_.retain_finished_s);
+    } catch (const std::exception& e) {
+      spdlog::warn("job {}: retention could not delete it: {}", id, e.what());
+    }
+  }
+}
+
+void Coordinator::ScrubStep(uint64_t bytes) {
+  if (scrub_next_ >= scrub_queue_.size()) {
+    if (!scrub_queue_.empty()) ++m_scrub_passes_;
+    scrub_queue_.clear();
+    for (const BlobStore::Entry& e : blobs_->List()) scrub_queue_.push_back(e.sha256);
+    std::sort(scrub_queue_.begin(), scrub_queue_.end());
+    scrub_next_ = 0;
+  }
+  uint64_t done = 0;
+  while (done < bytes && scrub_next_ < scrub_queue_.size()) {
+    const std::string& sha = scrub_queue_[scrub_next_++];
+    if (!blobs_->Has(sha)) continue;  // collected or quarantined meanwhile
+    std::error_code ec;
+    done += fs::file_size(blobs_->Path(sha), ec);
+    const uint64_t corrupted = blobs_->corrupted();
+    if (!blobs_->Verify(sha) && blobs_->corrupted() > corrupted) OnBlobCorrupted(sha);  // quarantined: made again
+  }
+  m_scrubbed_bytes_ += done;
+}
+
+void Coordinator::UpkeepLoop() {
+  auto last_gc = Clock::now();
+  std::unique_lock lock(mu_);
+  while (!stopping_) {
+    tick_cv_.wait_for(lock, std::chrono::seconds(1));
+    if (stopping_) break;
+    lock.unlock();
+    try {
+      if (options_.scrub_mb_per_s > 0) ScrubStep(uint64_t(options_.scrub_mb_per_s * 1024 * 1024));
+      if (Seconds(Clock::now() - last_gc) >= options_.gc_interval_s) {
+        last_gc = Clock::now();
+        ApplyRetention();
+        CollectGarbage();  // it frees space: it runs on a full disk too
+      }
+    } catch (const std::exception& e) {
+      spdlog::error("storage upkeep: {}", e.what());
+    }
+    lock.lock();
+  }
 }
 
 // --- storage ---------------------------------------------------------------------------------------
@@ -1539,6 +1698,11 @@ std::string Coordinator::MetricsText() {
           m_mismatches_);
   counter("lightfarm_job_repairs_total", "Times a corrupted blob or a blocklisted worker sent a job back to recompute.",
           m_repairs_);
+  counter("lightfarm_scrub_bytes_total", "Bytes of stored blobs re-hashed by the scrub.", m_scrubbed_bytes_);
+  counter("lightfarm_scrub_passes_total", "Complete passes of the scrub over the blob store.", m_scrub_passes_);
+  counter("lightfarm_gc_blobs_removed_total", "Blobs no job referenced, removed by the collection.", m_gc_removed_);
+  counter("lightfarm_gc_bytes_removed_total", "Bytes of those blobs.", m_gc_removed_bytes_);
+  counter("lightfarm_jobs_deleted_total", "Jobs deleted (by request or the retention policy).", m_deleted_);
   counter("lightfarm_blobs_corrupted_total", "Blobs found corrupted on the coordinator's disk and quarantined.",
           blobs_->corrupted());
   return os.str();

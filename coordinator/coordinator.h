@@ -55,6 +55,13 @@ struct CoordinatorOptions {
   // The share of tasks (chosen by a hash of job, pass, stage and task) run on a second worker
   // and compared bit for bit; a job's own `verify` asks for all of its tasks.
   double verify_share = 0;
+  // Storage upkeep (a background thread): finished jobs older than this are deleted (0: kept
+  // until `delete`); every gc_interval_s the blobs no job references and not written or asked
+  // for within gc_grace_s are removed; the scrub re-hashes the store at this rate (0: off).
+  double retain_finished_s = 0;
+  double gc_interval_s = 600;
+  double gc_grace_s = 3600;
+  double scrub_mb_per_s = 16;
   // Start an empty farm on a state directory whose database is missing or empty although it
   // holds blobs (otherwise refused: the jobs those blobs belong to would be forgotten).
   bool fresh_state = false;
@@ -113,6 +120,13 @@ class Coordinator {
   // Workers registered or seen since this coordinator started, most recently seen first.
   std::vector<v1::WorkerStatus> ListWorkers();
   JobResult GetResult(const std::string& job_id);
+  // Forgets a job (cancelled first when unfinished): its rows, result and scratch files; its
+  // blobs go at the next collection. NOT_FOUND for an unknown job.
+  void Delete(const std::string& job_id);
+  // Removes the blobs no job references that were not written or asked for within the grace
+  // period; returns how many. Safe against a concurrent submit (FindMissingBlobs and Put
+  // refresh a blob's time; Submit and the collection exclude each other).
+  size_t CollectGarbage();
   // The preview of a job in its final stage when more than `have_tiles` tiles are done; false
   // when there is nothing newer (or the job is not in its final stage). Shared by all watchers.
   bool Preview(const std::string& job_id, uint64_t have_tiles, JobPreview* out);
@@ -182,6 +196,7 @@ class Coordinator {
     std::string last_failure;     // the last task failure's reason
     uint64_t tasks_verified = 0;  // tasks two workers agreed on (every stage and pass)
     Clock::time_point blocked_since;  // since when no live worker may run it (epoch: it may run)
+    double ended_unix = 0;            // when it ended (the retention policy counts from it)
     std::string result_sha, stats_json;
     std::shared_ptr<const JobPreview> preview;  // the latest one computed
     // Progressive jobs (progressive.h): the pass running, the finished ones accumulated, and
@@ -259,6 +274,11 @@ class Coordinator {
   void AdvanceStage(int64_t id);  // on the planner pool: Combine + next stage, or the film
   void FinishJob(int64_t id, std::shared_ptr<Plan> plan, int stage);
   void TickLoop();
+  // Storage upkeep: the scrub, the retention policy and the garbage collection.
+  void UpkeepLoop();
+  // Re-hashes stored blobs worth up to `bytes`, continuing where the last call stopped.
+  void ScrubStep(uint64_t bytes);
+  void ApplyRetention();
   static std::vector<Task> MakeTasks(const std::vector<SubMatrixTask>& specs);
   // The settings a job's current pass renders with: the job's, seeded PassSeed(seed, pass).
   static v1::RenderSettings PassSettings(const Job& job);
@@ -280,11 +300,16 @@ class Coordinator {
   bool stopping_ = false;
   std::condition_variable tick_cv_;
   std::thread ticker_;
+  std::mutex gc_mu_;  // a collection and a submit's check of its blobs exclude each other
+  std::thread upkeep_;
+  std::vector<std::string> scrub_queue_;  // blobs left in this scrub pass (upkeep thread only)
+  size_t scrub_next_ = 0;
 
   // Counters for /metrics.
   std::atomic<uint64_t> m_leases_{0}, m_completed_{0}, m_duplicates_{0}, m_failed_{0},
       m_expired_{0}, m_submitted_{0}, m_lease_polls_{0}, m_storage_full_{0}, m_repairs_{0},
-      m_verified_{0}, m_mismatches_{0};
+      m_verified_{0}, m_mismatches_{0}, m_scrubbed_bytes_{0}, m_scrub_passes_{0}, m_gc_removed_{0},
+      m_gc_removed_bytes_{0}, m_deleted_{0};
 };
 
 }  // namespace lightfarm

@@ -391,6 +391,13 @@ void HttpServer::Routes() {
     if (!require_intent(req, res)) return;
     Guarded(res, [&] { SendJson(res, JobJson(c_.Cancel(req.matches[1]))); });
   });
+  s.Post(R"(/api/v1/jobs/(\d+)/delete)", [this, require_intent](const httplib::Request& req, httplib::Response& res) {
+    if (!require_intent(req, res)) return;
+    Guarded(res, [&] {
+      c_.Delete(req.matches[1]);
+      SendJson(res, json{{"id", std::string(req.matches[1])}, {"deleted", true}});
+    });
+  });
   s.Post(R"(/api/v1/jobs/(\d+)/priority)", [this, require_intent](const httplib::Request& req, httplib::Response& res) {
     if (!require_intent(req, res)) return;
     Guarded(res, [&] {

@@ -238,7 +238,9 @@ int64_t JobStore::InsertJob(const JobRecord& j) {
 
 void JobStore::SetJobState(int64_t id, int state, const std::string& error) {
   std::lock_guard lock(mu_);
-  Stmt(db_, "UPDATE jobs SET state = ?, error = ? WHERE id = ?").Bind(state).Bind(error).Bind(id).Step();
+  // A job that ends (done 4, failed 5, cancelled 6) records when: the retention policy counts from it.
+  Stmt(db_, "UPDATE jobs SET state = ?, error = ?, finished = CASE WHEN ? >= 4 THEN ? ELSE finished END WHERE id = ?")
+      .Bind(state).Bind(error).Bind(state).Bind(Now()).Bind(id).Step();
 }
 
 void JobStore::SetJobStage(int64_t id, int stage) {
@@ -343,7 +345,7 @@ void JobStore::EndAttempt(int64_t attempt, const std::string& outcome) {
 std::vector<JobRecord> JobStore::LoadJobs() {
   std::lock_guard lock(mu_);
   Stmt s(db_, "SELECT id, name, priority, state, manifest, settings, stage, error, created, "
-              "result_sha, stats_json, pass, accum_sha FROM jobs ORDER BY id");
+              "result_sha, stats_json, pass, accum_sha, finished FROM jobs ORDER BY id");
   std::vector<JobRecord> out;
   while (s.Step()) {
     JobRecord j;
@@ -360,6 +362,7 @@ std::vector<JobRecord> JobStore::LoadJobs() {
     j.stats_json = s.Str(10);
     j.pass = int(s.Int(11));
     j.accum_sha = s.Str(12);
+    j.finished = s.Real(13);
     out.push_back(std::move(j));
   }
   return out;
@@ -390,6 +393,41 @@ std::vector<std::pair<int, int>> JobStore::TasksDoneBy(int64_t job, const std::s
   s.Bind(job).Bind(worker);
   std::vector<std::pair<int, int>> out;
   while (s.Step()) out.emplace_back(int(s.Int(0)), int(s.Int(1)));
+  return out;
+}
+
+void JobStore::DeleteJob(int64_t id) {
+  std::lock_guard lock(mu_);
+  Exec("BEGIN");
+  try {
+    for (const char* sql : {"DELETE FROM attempts WHERE job_id = ?", "DELETE FROM tasks WHERE job_id = ?",
+                            "DELETE FROM stages WHERE job_id = ?", "DELETE FROM jobs WHERE id = ?"})
+      Stmt(db_, sql).Bind(id).Step();
+    Exec("COMMIT");
+  } catch (...) {
+    Exec("ROLLBACK");
+    throw;
+  }
+}
+
+void JobStore::DeleteOrphans() {
+  std::lock_guard lock(mu_);
+  for (const char* sql : {"DELETE FROM attempts WHERE job_id NOT IN (SELECT id FROM jobs)",
+                          "DELETE FROM tasks WHERE job_id NOT IN (SELECT id FROM jobs)",
+                          "DELETE FROM stages WHERE job_id NOT IN (SELECT id FROM jobs)"})
+    Exec(sql);
+}
+
+std::vector<std::string> JobStore::ReferencedBlobs() {
+  std::lock_guard lock(mu_);
+  std::vector<std::string> out;
+  Stmt s(db_,
+         "SELECT result_sha FROM jobs UNION SELECT accum_sha FROM jobs UNION SELECT result_sha FROM tasks "
+         "UNION SELECT artifact_sha FROM stages");
+  while (s.Step()) {
+    std::string sha = s.Str(0);
+    if (!sha.empty()) out.push_back(std::move(sha));
+  }
   return out;
 }
 

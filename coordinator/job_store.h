@@ -31,6 +31,7 @@ struct JobRecord {
   std::string result_sha, stats_json;  // a running progressive job: its passes so far
   int pass = 0;             // progressive jobs: the pass running (= passes finished)
   std::string accum_sha;    // progressive jobs: the PassAccumulator blob of the finished passes
+  double finished = 0;      // unix seconds it ended (0: it has not, or ended before this was kept)
 };
 
 struct TaskRecord {
@@ -76,6 +77,12 @@ class JobStore {
 
   std::vector<JobRecord> LoadJobs();
   void SetJobPriority(int64_t id, int priority);
+  // Every row of the job (its tasks, attempts and artifacts too), in one transaction.
+  void DeleteJob(int64_t id);
+  // Rows of tasks, attempts and artifacts whose job is gone.
+  void DeleteOrphans();
+  // Every blob the stored jobs name: results, accumulations, task results, artifacts.
+  std::vector<std::string> ReferencedBlobs();
 
   struct WorkerRecord {
     std::string id, name, version;

@@ -58,6 +58,17 @@ int main(int argc, char** argv) {
   app.add_option("--verify-share", opt.verify_share,
                  "Share of tasks run on a second worker and compared bit for bit (0..1; a job's --verify: all)")
       ->check(lightfarm::FiniteRange(0.0, 1.0));
+  app.add_option("--retain-finished-s", opt.retain_finished_s,
+                 "Delete finished jobs this many seconds after they ended (0: keep until `lightfarm delete`)")
+      ->check(lightfarm::FiniteRange(0.0, 1e12));
+  app.add_option("--gc-interval-s", opt.gc_interval_s, "Seconds between collections of unused blobs")
+      ->check(lightfarm::FiniteRange(0.1, 1e9));
+  app.add_option("--gc-grace-s", opt.gc_grace_s,
+                 "A blob written or asked for within this many seconds is never collected (an upload before its submit)")
+      ->check(lightfarm::FiniteRange(0.0, 1e9));
+  app.add_option("--scrub-mb-per-s", opt.scrub_mb_per_s,
+                 "Rate at which stored blobs are re-hashed in the background, MiB/s (0: off)")
+      ->check(lightfarm::FiniteRange(0.0, 1e6));
   app.add_option("--rpc-threads", server.rpc_threads, "Threads serving RPCs")->check(CLI::Range(1, 256));
   app.add_option("--drain-seconds", drain_s, "Grace period for in-flight RPCs on SIGTERM")
       ->check(lightfarm::FiniteRange(0.0, 86400.0));

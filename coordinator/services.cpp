@@ -377,6 +377,7 @@ class FarmServer::RenderServiceImpl final : public v1::RenderService::CallbackSe
       if (!IsSha256Hex(state->sha))
         throw FarmError(FarmError::Code::kInvalidArgument, "the first chunk must name the blob's SHA-256 (lower-case hex)");
       state->skip = blobs.Has(state->sha);
+      if (state->skip) blobs.Touch(state->sha);  // asked for again: kept through the grace period
       if (!state->skip && c_.storage_full())
         throw FarmError(FarmError::Code::kResourceExhausted, c_.StorageFullMessage());
       return state->size;
@@ -414,6 +415,11 @@ class FarmServer::RenderServiceImpl final : public v1::RenderService::CallbackSe
       for (v1::JobStatus& s : c_.ListJobs()) *resp->add_jobs() = std::move(s);
     });
   }
+  grpc::ServerUnaryReactor* DeleteJob(grpc::CallbackServerContext* ctx, const v1::GetJobRequest* req,
+                                      v1::DeleteJobResponse*) override {
+    return Unary(ctx, [this, req] { c_.Delete(req->job_id()); });
+  }
+
   grpc::ServerUnaryReactor* CancelJob(grpc::CallbackServerContext* ctx, const v1::GetJobRequest* req,
                                       v1::JobStatus* resp) override {
     return Unary(ctx, [this, req, resp] { *resp = c_.Cancel(req->job_id()); });

@@ -108,6 +108,12 @@ v1::JobStatus RenderClient::Cancel(const std::string& job_id) {
   return Call(&v1::RenderService::Stub::CancelJob, req);
 }
 
+void RenderClient::Delete(const std::string& job_id) {
+  v1::GetJobRequest req;
+  req.set_job_id(job_id);
+  Call(&v1::RenderService::Stub::DeleteJob, req);
+}
+
 v1::JobStatus RenderClient::SetPriority(const std::string& job_id, int priority) {
   v1::SetJobPriorityRequest req;
   req.set_job_id(job_id);

@@ -31,6 +31,7 @@ class RenderClient {
   v1::JobStatus GetJob(const std::string& job_id);
   std::vector<v1::JobStatus> ListJobs();
   v1::JobStatus Cancel(const std::string& job_id);
+  void Delete(const std::string& job_id);
   v1::JobStatus SetPriority(const std::string& job_id, int priority);
   std::vector<v1::WorkerStatus> ListWorkers();
   // Follows the job until it ends, calling on_update for every status; reconnects (with the

@@ -115,6 +115,20 @@ function cancelButton(j, after) {
   }}, "Cancel");
 }
 
+function deleteButton(j, after) {
+  if (!TERMINAL.has(j.state)) return null;
+  return el("button", {class: "delete", "data-job-id": j.id, onclick: async (e) => {
+    e.preventDefault();
+    try {
+      await post("/api/v1/jobs/" + j.id + "/delete");
+      setStatus("job " + j.id + " deleted");
+    } catch (err) {
+      setStatus("delete job " + j.id + ": " + err.message, true);
+    }
+    after();
+  }}, "Delete");
+}
+
 // --- views -------------------------------------------------------------------------------------------
 
 async function jobsView(view) {
@@ -130,7 +144,7 @@ async function jobsView(view) {
     el("td", {class: "num"}, seconds(j.elapsed_s)),
     el("td", {class: "num"}, TERMINAL.has(j.state) ? "—" : seconds(j.eta_s)),
     el("td", {class: "num"}, j.attempts),
-    el("td", {}, cancelButton(j, refresh))));
+    el("td", {}, cancelButton(j, refresh), deleteButton(j, refresh))));
   show(view, 
     el("h1", {}, "Jobs"),
     jobs.length === 0 ? el("p", {class: "muted"}, "No jobs yet: submit one with `lightfarm submit`.") :

@@ -73,6 +73,10 @@ TEST(FarmIntegrity, ACorruptedStoreBlobIsQuarantinedNeverReadAndPutRepairsIt) {
   EXPECT_EQ(FilesIn(dir.Path("blobs/quarantine")), 2u);
 }
 
+// These cases test the checks on read; the background scrub (test_farm_upkeep.cpp) would find
+// the flipped bytes first.
+const std::vector<std::string> kReadPathOnly = {"--scrub-mb-per-s", "0"};
+
 const std::vector<std::string> kJob = {"--method", "brute", "--resolution", "16x16", "--lights", "500", "--seed", "3"};
 
 // A finished job's result blob changed on the coordinator's disk while it was down: `fetch`
@@ -81,7 +85,7 @@ const std::vector<std::string> kJob = {"--method", "brute", "--resolution", "16x
 TEST(FarmIntegrity, ACorruptedResultIsNeverServed) {
   TempDir dir;
   const std::string state = dir.Path("state");
-  auto coordinator = std::make_unique<CoordinatorProcess>(dir, state, std::vector<std::string>{});
+  auto coordinator = std::make_unique<CoordinatorProcess>(dir, state, kReadPathOnly);
   const int port = coordinator->port();
   auto worker = StartWorker(dir, coordinator->address());
   std::vector<std::string> submit = {"submit", ExampleCornellBox(), "--server", coordinator->address(), "--wait",
@@ -99,7 +103,7 @@ TEST(FarmIntegrity, ACorruptedResultIsNeverServed) {
   coordinator->process().Kill(SIGKILL);
   coordinator->process().Wait(5);
   FlipByte(state + "/blobs/" + sha);
-  coordinator = std::make_unique<CoordinatorProcess>(dir, state, std::vector<std::string>{}, port);
+  coordinator = std::make_unique<CoordinatorProcess>(dir, state, kReadPathOnly, port);
 
   CliResult fetch = RunCli(dir, {"fetch", job, "--server", coordinator->address(), "--out", dir.Path("again.exr")});
   EXPECT_NE(fetch.exit_code, 0);
@@ -137,7 +141,7 @@ std::set<std::string> SceneBlobs(const std::string& scene) {
 TEST(FarmIntegrity, ACorruptedTaskResultIsComputedAgain) {
   TempDir dir;
   const std::string state = dir.Path("state");
-  auto coordinator = std::make_unique<CoordinatorProcess>(dir, state, std::vector<std::string>{});
+  auto coordinator = std::make_unique<CoordinatorProcess>(dir, state, kReadPathOnly);
   const int port = coordinator->port();
   auto worker = StartWorker(dir, coordinator->address());
   std::vector<std::string> submit = {"submit", ExampleCornellBox(), "--server", coordinator->address(), "--wait",
@@ -159,7 +163,7 @@ TEST(FarmIntegrity, ACorruptedTaskResultIsComputedAgain) {
   coordinator->process().Wait(5);
   FlipByte(state + "/blobs/" + task_sha);
   FlipByte(state + "/blobs/" + result_sha);
-  coordinator = std::make_unique<CoordinatorProcess>(dir, state, std::vector<std::string>{}, port);
+  coordinator = std::make_unique<CoordinatorProcess>(dir, state, kReadPathOnly, port);
   CliResult fetch = RunCli(dir, {"fetch", job, "--server", coordinator->address(), "--out", dir.Path("again.exr")});
   EXPECT_NE(fetch.err.find("DATA_LOSS"), std::string::npos) << fetch.err;
   RenderClient client = coordinator->Client();
@@ -179,7 +183,7 @@ TEST(FarmIntegrity, ACorruptedTaskResultIsComputedAgain) {
 TEST(FarmIntegrity, ACorruptedLightSetIsMadeAgainAndNoWorkerIsBlamed) {
   TempDir dir;
   const std::string state = dir.Path("state");
-  CoordinatorProcess coordinator(dir, state, {});
+  CoordinatorProcess coordinator(dir, state, kReadPathOnly);
   RenderClient client = coordinator.Client();
   std::vector<std::string> submit = {"submit", ExampleCornellBox(), "--server", coordinator.address()};
   submit.insert(submit.end(), kJob.begin(), kJob.end());

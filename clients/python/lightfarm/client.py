@@ -165,6 +165,10 @@ class Job:
     def cancel(self):
         return JobStatus.from_proto(self._client._call("CancelJob", render_pb2.GetJobRequest(job_id=self.id)))
 
+    def delete(self):
+        """Forgets the job on the farm (cancelled first when unfinished): its result, stats and stored work."""
+        self._client._call("DeleteJob", render_pb2.GetJobRequest(job_id=self.id))
+
     def set_priority(self, priority):
         return JobStatus.from_proto(self._client._call(
             "SetJobPriority", render_pb2.SetJobPriorityRequest(job_id=self.id, priority=int(priority))))

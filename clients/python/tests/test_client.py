@@ -120,6 +120,10 @@ def test_cancel_and_priority(client, cornell):
     with pytest.raises(lightfarm.LightfarmError) as err:
         job.set_priority(4)
     assert err.value.code == grpc.StatusCode.FAILED_PRECONDITION
+    job.delete()
+    with pytest.raises(lightfarm.LightfarmError) as err:
+        job.status()
+    assert err.value.code == grpc.StatusCode.NOT_FOUND
 
 
 def test_progressive_job_watch_reports_passes(client, cornell):
