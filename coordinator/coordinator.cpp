@@ -484,7 +484,7 @@ JobResult Coordinator::GetResult(const std::string& job_id) {
     throw FarmError(Code::kDataLoss, "the result image of job " + job_id +
                                          " is corrupted on the coordinator's disk (blob " + sha + ", quarantined); " + next);
   }
-  return JobResult{job.stats_json, blobs_->Path(job.result_sha)};
+  return JobResult{job.stats_json, blobs_->Path(job.result_sha), job.result_sha};
 }
 
 bool Coordinator::Preview(const std::string& job_id, uint64_t have_tiles, JobPreview* out) {

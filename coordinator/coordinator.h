@@ -89,6 +89,7 @@ struct LeaseGrant {
 struct JobResult {
   std::string stats_json;
   std::string exr_path;
+  std::string exr_sha256;  // verified just before; the client checks the stream against it
 };
 
 class Coordinator {

@@ -447,13 +447,14 @@ class FarmServer::RenderServiceImpl final : public v1::RenderService::CallbackSe
     JobResult result;
     grpc::Status st = Guard([&] { result = c_.GetResult(req->job_id()); });
     if (!st.ok()) return new RejectWriteReactor<v1::ResultChunk>(st);
-    std::string stats = result.stats_json;
+    std::string stats = result.stats_json, sha = result.exr_sha256;
     uint64_t size = std::filesystem::file_size(result.exr_path);
     return new FileStreamReactor<v1::ResultChunk>(
-        pool_, result.exr_path, [stats, size](v1::ResultChunk& m, std::string&& data, bool first) {
+        pool_, result.exr_path, [stats, sha, size](v1::ResultChunk& m, std::string&& data, bool first) {
           if (first) {
             m.set_stats_json(stats);
             m.set_exr_size(size);
+            m.set_exr_sha256(sha);
           }
           m.set_exr_data(std::move(data));
         });

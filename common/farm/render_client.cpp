@@ -174,10 +174,12 @@ void RenderClient::Fetch(const std::string& job_id, std::string* exr, std::strin
   exr->clear();
   bool first = true;
   uint64_t size = 0;
+  std::string sha;
   while (reader->Read(&chunk)) {
     if (first) {
       *stats_json = chunk.stats_json();
       size = chunk.exr_size();
+      sha = chunk.exr_sha256();
       exr->reserve(size);
       first = false;
     }
@@ -186,6 +188,14 @@ void RenderClient::Fetch(const std::string& job_id, std::string* exr, std::strin
   ThrowIfError(reader->Finish());
   if (first || exr->size() != size)
     throw std::runtime_error("job " + job_id + ": the result stream was truncated");
+  if (!sha.empty()) {
+    Sha256 hash;
+    hash.Update(exr->data(), exr->size());
+    const std::string got = hash.HexDigest();
+    if (got != sha)
+      throw std::runtime_error("job " + job_id + ": the result arrived corrupted (its bytes hash to " + got +
+                               ", the coordinator sent " + sha + ")");
+  }
 }
 
 }  // namespace lightfarm

@@ -149,17 +149,20 @@ class Job:
 
     def result(self):
         """The finished job's image and stats (a progressive job's mean so far while it runs)."""
-        stats, chunks = None, []
+        stats, sha, chunks = None, "", []
         try:
             for chunk in self._client._stub.FetchResult(render_pb2.GetJobRequest(job_id=self.id),
                                                         metadata=self._client._metadata,
                                                         timeout=self._client.timeout):
                 if stats is None:
-                    stats = chunk.stats_json
+                    stats, sha = chunk.stats_json, chunk.exr_sha256
                 chunks.append(chunk.exr_data)
         except grpc.RpcError as e:
             raise LightfarmError.from_rpc(e) from None
         exr = b"".join(chunks)
+        if sha and hashlib.sha256(exr).hexdigest() != sha:
+            raise LightfarmError(grpc.StatusCode.DATA_LOSS,
+                                 "the result of job {0} arrived corrupted".format(self.id))
         return Result(image=decode_exr(exr), stats=json.loads(stats or "{}"), exr=exr)
 
     def cancel(self):
