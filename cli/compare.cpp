@@ -72,15 +72,18 @@ void RunCompare(const CompareOptions& options) {
     out["rmse"] = metrics.rmse;
     out["excluded_pixels"] = metrics.excluded_pixels;
     out["excluded_bright"] = metrics.excluded_bright;
+    out["speck_share"] = metrics.speck_share;
+    out["dark_specks"] = metrics.dark_specks;
+    out["bright_specks"] = metrics.bright_specks;
     out["reference"] = options.reference;
     out["image"] = options.image;
     out["width"] = image.width;
     out["height"] = image.height;
     std::cout << out.dump() << std::endl;
   } else {
-    char line[160];
-    std::snprintf(line, sizeof line, "rel_l2=%.6g  rel_l1=%.6g  rmse=%.6g", metrics.rel_l2,
-                  metrics.rel_l1, metrics.rmse);
+    char line[200];
+    std::snprintf(line, sizeof line, "rel_l2=%.6g  rel_l1=%.6g  rmse=%.6g  specks=%.4g%%", metrics.rel_l2,
+                  metrics.rel_l1, metrics.rmse, 100 * metrics.speck_share);
     std::cout << line;
     if (metrics.excluded_pixels > 0)
       std::cout << "  excluded=" << metrics.excluded_pixels << " (non-finite reference pixels)";
@@ -114,8 +117,9 @@ void AddCompareCommand(CLI::App& app) {
                   "Leave out reference pixels with a channel above this (an emitter's own pixels, "
                   "which a few samples hit or miss)");
   cmd->add_flag("--json", options->json,
-                "Print {\"rel_l2\", \"rel_l1\", \"rmse\", \"reference\", \"image\", \"width\", "
-                "\"height\"} as JSON");
+                "Print {\"rel_l2\", \"rel_l1\", \"rmse\", \"speck_share\", \"reference\", \"image\", "
+                "\"width\", \"height\"} as JSON (speck_share: lit reference pixels below 0.3x the smallest "
+                "or above 3x the largest reference value around them)");
   cmd->callback([options] { RunCompare(*options); });
 }
 

@@ -70,7 +70,7 @@ int main(int argc, char** argv) {
     CameraSample cs;
     cs.pixel = uint32_t(s);
     cs.weight = 1;
-    cs.point = s == 0 ? 0 : -1;
+    if (s == 0) cs.first_point = 0, cs.point_count = 1;
     receivers.samples.push_back(cs);
   }
   ShadingPoint sp;

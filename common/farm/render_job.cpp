@@ -238,6 +238,7 @@ Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, Ph
   ropt.segments_per_ray = media_rows ? segments_per_ray : -1;
   ropt.media_direct_samples = media_rows ? plan.matrix_options.media_direct_samples : 0;
   ropt.sharp_samples = plan.matrix_options.sharp_samples;
+  ropt.coat_splits = plan.matrix_options.coat_splits;
   ropt.camera_paths = camera_paths >= 0 ? camera_paths : CameraPathsFor(scene, plan.effects, ropt.media_direct_samples > 0);
   *plan.receivers = GenerateReceivers(scene, filter_sampler, ropt);
   timer.End("receivers");
@@ -324,7 +325,7 @@ GatherOutcome RunStagesLocally(const Plan& plan, const ProgressFn& progress, Pha
 }
 
 void SampleRows(const Plan& plan, const CameraSample& cs, std::vector<uint32_t>* rows) {
-  if (cs.point >= 0) rows->push_back(uint32_t(cs.point));
+  for (uint32_t k = 0; k < cs.point_count; ++k) rows->push_back(uint32_t(cs.first_point) + k);
   // In-scattered light along the sample's eye segments (rows after the point rows).
   const size_t npoints = plan.receivers->points.size();
   for (uint32_t k = 0; k < cs.segment_count; ++k)
@@ -334,7 +335,7 @@ void SampleRows(const Plan& plan, const CameraSample& cs, std::vector<uint32_t>*
 RGB SampleRadiance(const Plan& plan, const CameraSample& cs, const std::vector<RGBAccum>& row_sums) {
   RGBAccum L;
   L.Add(cs.emitted);
-  if (cs.point >= 0) L.Add(row_sums[cs.point]);
+  for (uint32_t k = 0; k < cs.point_count; ++k) L.Add(row_sums[size_t(cs.first_point) + k]);
   const size_t npoints = plan.receivers->points.size();
   for (uint32_t k = 0; k < cs.segment_count; ++k)
     L.Add(row_sums[npoints + size_t(cs.first_segment) + k]);
@@ -442,6 +443,9 @@ nlohmann::json MakeStats(const Plan& plan, const RenderSettings& settings,
                     {"camera_active_pixels", plan.receivers->stats.camera_active_pixels},
                     {"media_direct_samples", plan.receivers->stats.media_direct_samples},
                     {"specular_bounces", plan.receivers->stats.specular_bounces},
+                    {"split_vertices", plan.receivers->stats.split_vertices},
+                    {"points_per_sample", plan.receivers->samples.empty() ? 0.0
+                                          : double(plan.receivers->points.size()) / double(plan.receivers->samples.size())},
                     {"escaped", plan.receivers->stats.escaped},
                     {"transmittance_evals", plan.receivers->stats.transmittance_evals}};
   s["media"] = {{"tracks", plan.matrix->medium_tracks()}, {"track_knots", plan.matrix->medium_track_knots()}};

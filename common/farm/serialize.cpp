@@ -75,7 +75,7 @@ std::vector<uint32_t> GetIndices(ByteReader& r) {
 
 constexpr size_t kLightBytes = 4 * 3 * 5 + 4 + 1 + 1 + 1 + 1 + 4 + 4 + 1 + 4 + 2 + 4;
 constexpr size_t kPointBytes = 4 * 3 * 5 + 4 + 4 + 1 + 2 + 2;
-constexpr size_t kSampleBytes = 4 + 4 + 12 + 4 + 4 + 4;
+constexpr size_t kSampleBytes = 4 + 4 + 12 + 4 + 4 + 4 + 4;
 constexpr size_t kSegmentBytes = 12 + 12 + 4 + 12 + 2 + 1 + 4;
 
 }  // namespace
@@ -218,14 +218,15 @@ Bytes SerializeReceiverSet(const ReceiverSet& set) {
   w.U32(uint32_t(set.spp));
   for (size_t v : {set.stats.camera_rays, set.stats.specular_bounces, set.stats.escaped,
                    set.stats.nonfinite_rays, set.stats.camera_paths, set.stats.camera_pilot_paths,
-                   set.stats.camera_active_pixels, set.stats.media_direct_samples})
+                   set.stats.camera_active_pixels, set.stats.media_direct_samples, set.stats.split_vertices})
     w.U64(v);
   w.U64(set.samples.size());
   for (const CameraSample& c : set.samples) {
     w.U32(c.pixel);
     w.F32(c.weight);
     PutRGB(w, c.emitted);
-    w.U32(uint32_t(c.point));
+    w.U32(uint32_t(c.first_point));
+    w.U32(c.point_count);
     w.U32(uint32_t(c.first_segment));
     w.U32(c.segment_count);
   }
@@ -264,7 +265,7 @@ ReceiverSet DeserializeReceiverSet(ByteView bytes) {
   set.spp = int(spp);
   for (size_t* v : {&set.stats.camera_rays, &set.stats.specular_bounces, &set.stats.escaped,
                     &set.stats.nonfinite_rays, &set.stats.camera_paths, &set.stats.camera_pilot_paths,
-                    &set.stats.camera_active_pixels, &set.stats.media_direct_samples})
+                    &set.stats.camera_active_pixels, &set.stats.media_direct_samples, &set.stats.split_vertices})
     *v = size_t(r.U64());
   const uint64_t pixels = uint64_t(width) * height;
   set.samples.resize(r.Count(kSampleBytes));
@@ -273,7 +274,8 @@ ReceiverSet DeserializeReceiverSet(ByteView bytes) {
     c.pixel = r.U32();
     c.weight = r.F32();
     c.emitted = GetRGB(r);
-    c.point = int32_t(r.U32());
+    c.first_point = int32_t(r.U32());
+    c.point_count = r.U32();
     c.first_segment = int32_t(r.U32());
     c.segment_count = r.U32();
     if (c.pixel >= pixels)
@@ -306,9 +308,10 @@ ReceiverSet DeserializeReceiverSet(ByteView bytes) {
                            " of " + std::to_string(set.samples.size()));
   }
   for (const CameraSample& c : set.samples) {
-    if (c.point < -1 || (c.point >= 0 && size_t(c.point) >= set.points.size()))
-      throw SerializeError("receiver set: sample names shading point " + std::to_string(c.point) +
-                           " of " + std::to_string(set.points.size()));
+    if (c.point_count > 0 &&
+        (c.first_point < 0 || size_t(c.first_point) + c.point_count > set.points.size()))
+      throw SerializeError("receiver set: sample names shading points " + std::to_string(c.first_point) + "+" +
+                           std::to_string(c.point_count) + " of " + std::to_string(set.points.size()));
     if (c.segment_count > 0 &&
         (c.first_segment < 0 || size_t(c.first_segment) + c.segment_count > set.segments.size()))
       throw SerializeError("receiver set: sample names eye segments out of range");

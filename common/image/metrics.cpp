@@ -100,6 +100,27 @@ ErrorMetrics CompareImages(const Image& reference, const Image& image, float exc
     throw std::runtime_error("reference image is all zero: relative errors are undefined");
   }
   ErrorMetrics m;
+  size_t lit = 0;
+  for (int y = 0; y < reference.height; ++y)
+    for (int x = 0; x < reference.width; ++x) {
+      const RGB& r = reference.at(x, y);
+      if (!r.IsFinite() || r.Max() > exclude_above || !(r.Luminance() > 0.f)) continue;
+      ++lit;
+      float lo = kInfinity, hi = 0;
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) {
+          const int xx = x + dx, yy = y + dy;
+          if (xx < 0 || yy < 0 || xx >= reference.width || yy >= reference.height) continue;
+          const RGB& n = reference.at(xx, yy);
+          if (!n.IsFinite()) continue;
+          lo = std::min(lo, n.Luminance());
+          hi = std::max(hi, n.Luminance());
+        }
+      const float v = image.at(x, y).Luminance();
+      m.dark_specks += v < 0.3f * lo;
+      m.bright_specks += v > 3.f * hi;
+    }
+  m.speck_share = lit > 0 ? double(m.dark_specks + m.bright_specks) / double(lit) : 0.0;
   m.rel_l2 = std::sqrt(diff2 / ref2);
   m.rel_l1 = diff1 / ref1;
   m.rmse = std::sqrt(diff2 / (3.0 * static_cast<double>(reference.PixelCount() - excluded - bright)));

@@ -14,6 +14,11 @@ struct ErrorMetrics {
   double rmse = 0;    // sqrt(mean over all pixel channels of (ref − img)²)
   size_t excluded_pixels = 0;  // reference pixels that are NaN/Inf, left out of all three
   size_t excluded_bright = 0;  // reference pixels above exclude_above, left out as well
+  // Specks: the share of lit reference pixels (luminance > 0) whose luminance is below 0.3× the
+  // smallest, or above 3× the largest, reference luminance in their 3×3 neighbourhood, so the
+  // reference's own edges never count (a single-pixel black or bright dot the truth lacks).
+  double speck_share = 0;
+  size_t dark_specks = 0, bright_specks = 0;
 };
 
 // Computed in double. A path-traced reference may hold a stray NaN/Inf pixel (water-caustic's

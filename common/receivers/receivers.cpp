@@ -25,9 +25,11 @@ bool ReflectsNothing(const Material& m) {
 
 struct PathEnd {
   RGB emitted;
-  bool has_point = false;
-  ShadingPoint point;
+  // Receivers along the path: the rough part of every vertex the path split at, then the
+  // vertex it ended on (CameraPathOptions::splits).
+  std::vector<ShadingPoint> points;
   int specular_bounces = 0;
+  int split_vertices = 0;
   bool escaped = false;
   size_t transmittance_evals = 0;
   size_t media_direct_samples = 0;
@@ -35,17 +37,18 @@ struct PathEnd {
 };
 
 // One emitter sample of next-event estimation for the sharp lobe of the vertex at `hit`
-// (docs/rendering.md, "Sharp lobes"), given that the camera path chose the lobe (probability
-// p_lobe), weighted by the power heuristic against the lobe's own sample with `count` emitter
-// samples to one lobe sample (Veach 1997, Sec. 9.2.4: weights on n_i·p_i): the caller averages
-// the `count` samples.
+// (docs/rendering.md, "Sharp lobes"), given that the camera path follows the lobe (with
+// probability p_choice: SampleBSDF's p_lobe when the path chose between the lobes, 1 when it
+// split), weighted by the power heuristic against the lobe's own sample (whose density given the
+// lobe is PdfSharpLobe / p_lobe) with `count` emitter samples to one lobe sample (Veach 1997,
+// Sec. 9.2.4: weights on n_i·p_i): the caller averages the `count` samples.
 RGB SharpLobeEmitterSample(const Scene& scene, const EmitterSampler& lights, const SurfaceHit& hit,
-                           const Material& m, const Frame& frame, Vec3 wo_local, float p_lobe, int medium,
-                           int count, Rng& rng) {
+                           const Material& m, const Frame& frame, Vec3 wo_local, float p_lobe, float p_choice,
+                           int medium, int count, Rng& rng) {
   const float u_pick = rng.Uniform();
   const Vec2 u{rng.Uniform(), rng.Uniform()};
   const std::optional<LightSample> ls = lights.Sample(hit.p, u_pick, u);
-  if (!ls || !(p_lobe > 0)) return RGB(0.f);
+  if (!ls || !(p_lobe > 0) || !(p_choice > 0)) return RGB(0.f);
   const Vec3 wi_local = frame.ToLocal(ls->wi);
   const RGB f = EvalSharpLobe(m, wo_local, wi_local, TransportMode::kRadiance) * std::abs(wi_local.z);
   if (f.IsBlack()) return RGB(0.f);
@@ -53,7 +56,7 @@ RGB SharpLobeEmitterSample(const Scene& scene, const EmitterSampler& lights, con
   const RGB tr = LightSampleVisibility(scene, OffsetRayOrigin(hit.p, hit.ng, ls->wi), *ls, start, rng);
   if (tr.IsBlack()) return RGB(0.f);
   const float w = ls->delta ? 1.f : PowerHeuristic(float(count) * ls->pdf, PdfSharpLobe(m, wo_local, wi_local) / p_lobe);
-  return f * ls->L * tr * (w / (ls->pdf * p_lobe));
+  return f * ls->L * tr * (w / (ls->pdf * p_choice));
 }
 
 // Next-event estimation at a sharp vertex: the average of `count` emitter samples. A sharp lobe
@@ -61,11 +64,11 @@ RGB SharpLobeEmitterSample(const Scene& scene, const EmitterSampler& lights, con
 // emitter samples, not by the lobe's one sample; each costs one shadow ray, against the
 // thousands the receiver's gather casts, so several per vertex are nearly free.
 RGB SharpLobeDirectLight(const Scene& scene, const EmitterSampler& lights, const SurfaceHit& hit,
-                         const Material& m, const Frame& frame, Vec3 wo_local, float p_lobe, int medium,
-                         int count, Rng& rng) {
+                         const Material& m, const Frame& frame, Vec3 wo_local, float p_lobe, float p_choice,
+                         int medium, int count, Rng& rng) {
   RGB sum(0.f);
   for (int i = 0; i < count; ++i)
-    sum += SharpLobeEmitterSample(scene, lights, hit, m, frame, wo_local, p_lobe, medium, count, rng);
+    sum += SharpLobeEmitterSample(scene, lights, hit, m, frame, wo_local, p_lobe, p_choice, medium, count, rng);
   return sum / float(count);
 }
 
@@ -85,6 +88,12 @@ struct CameraPathOptions {
   int media_samples = 0;
   // Eye segments per opaque medium piece, minus one (AppendEyeSegments); -1: no segments.
   int segments_per_ray = -1;
+  // Vertices per path at which a material with a sharp or delta lobe over a rough base (a clear
+  // coat) splits instead of choosing: the base becomes a receiver and the lobe is followed, each
+  // with its own weight (ReceiverOptions::coat_splits). Later such vertices choose.
+  int splits = 0;
+  // Whether the path's receivers are kept (false for paths that only collect camera-side light).
+  bool keep_points = true;
 };
 
 // A camera ray's piece [0, tmax] inside one medium, tabulated (an unbounded piece, a ray leaving
@@ -204,41 +213,59 @@ PathEnd TraceCameraPath(const Scene& scene, const CameraPathOptions& opt, Ray ra
     if (++depth > max_depth) return end;
     Frame frame(hit.ns);
     Vec3 wo_local = frame.ToLocal(wo);
-    // A material with delta and non-delta lobes (a smooth coat over a diffuse base): follow the
-    // delta lobe with probability p, else become a receiver weighted by 1/(1-p) (unbiased split;
-    // the matrix evaluates only the non-delta lobes).
-    float p_specular = SpecularSamplingProbability(m, wo_local);
+    const auto make_receiver = [&](RGB throughput) {
+      if (ReflectsNothing(m) || !opt.keep_points) return;
+      ShadingPoint& point = end.points.emplace_back();
+      point.p = hit.p;
+      point.ng = hit.ng;
+      point.ns = hit.ns;
+      point.wo = wo;
+      point.throughput = throughput;
+      point.material = uint32_t(shape.material);
+      point.depth = uint8_t(std::min(depth, 255));
+      point.medium_out = int16_t(shape.medium_transition ? shape.outside_medium : medium);
+      point.medium_in = int16_t(shape.medium_transition ? shape.inside_medium : medium);
+    };
+    // A material with delta (or sharp) and rough lobes (a smooth coat over a diffuse base). The
+    // matrix evaluates only the rough lobes, so a receiver here carries the light the base
+    // reflects (f_base already holds what the coat transmits); the coat's reflection is carried
+    // by following its lobe. Split (docs/rendering.md, "Mixed vertices"): both, each with
+    // weight 1: the receiver with beta, the lobe with beta·f·cos/pdf_lobe; every path is counted
+    // once and no sample loses the base. Choose (after opt.splits splits): follow the lobe with
+    // probability p, else become a receiver weighted by 1/(1-p).
+    const float p_specular = SpecularSamplingProbability(m, wo_local);
+    const bool mixed = !IsPurelySpecular(flags) && p_specular > 0;
+    const bool split = mixed && end.split_vertices < opt.splits;
     float uc = rng.Uniform();
-    if (!IsPurelySpecular(flags) && uc >= p_specular) {
-      if (ReflectsNothing(m)) return end;
-      beta = beta / (1.f - p_specular);
-      end.has_point = true;
-      end.point.p = hit.p;
-      end.point.ng = hit.ng;
-      end.point.ns = hit.ns;
-      end.point.wo = wo;
-      end.point.throughput = beta;
-      end.point.material = uint32_t(shape.material);
-      end.point.depth = uint8_t(std::min(depth, 255));
-      end.point.medium_out = int16_t(shape.medium_transition ? shape.outside_medium : medium);
-      end.point.medium_in = int16_t(shape.medium_transition ? shape.inside_medium : medium);
+    float p_choice = std::max(p_specular, 1e-6f);
+    if (split) {
+      ++end.split_vertices;
+      make_receiver(beta);
+      if (depth >= max_depth) return end;
+      // SampleBSDF picks the delta lobe exactly when uc < p_specular (bsdf.h contract).
+      uc *= p_specular;
+      p_choice = 1.f;
+    } else if (!IsPurelySpecular(flags) && uc >= p_specular) {
+      make_receiver(beta / (1.f - p_specular));
       return end;
     }
     if (depth >= max_depth) return end;
     // Continue along a delta lobe (radiance transport); for a mixed material uc < p_specular
-    // makes SampleBSDF choose the delta lobe (bsdf.h contract), and its pdf includes p_specular.
+    // makes SampleBSDF choose the delta lobe, and its pdf includes p_specular.
     auto bs = SampleBSDF(m, wo_local, uc, {rng.Uniform(), rng.Uniform()}, TransportMode::kRadiance);
     if (!bs || !(bs->pdf > 0) || !bs->IsSpecular()) return end;
     Vec3 wi = frame.FromLocal(bs->wi);
+    const float p_lobe = mixed ? std::max(p_specular, 1e-6f) : 1.f;
     if (lights && HasSharpLobe(m)) {
       // A sharp lobe is not a delta: emitters it reflects get an emitter sample too (MIS).
-      const float p_lobe = std::max(p_specular, 1e-6f);
-      end.emitted += beta * SharpLobeDirectLight(scene, *lights, hit, m, frame, wo_local, p_lobe, medium,
-                                                  sharp_samples, rng);
+      end.emitted += beta * SharpLobeDirectLight(scene, *lights, hit, m, frame, wo_local, p_lobe,
+                                                  mixed ? p_choice : 1.f, medium, sharp_samples, rng);
       after_sharp = true;
       sharp_pdf = bs->pdf / p_lobe;
       sharp_p = hit.p;
     }
+    // Split: the lobe is always followed, so its weight is f·cos over its density given the lobe.
+    if (split) bs->pdf /= p_specular;
     beta *= bs->f * (std::abs(bs->wi.z) / bs->pdf);
     if (beta.IsBlack() || !beta.IsFinite()) return end;
     ++end.specular_bounces;
@@ -652,8 +679,7 @@ ReceiverSet GenerateReceivers(const Scene& scene, const FilterSampler& filter,
   const size_t npix = size_t(set.width) * set.height;
   const int spp = set.spp;
   set.samples.resize(npix * spp);
-  std::vector<ShadingPoint> points(npix * spp);
-  std::vector<uint8_t> has_point(npix * spp, 0);
+  std::vector<std::vector<ShadingPoint>> points(npix * spp);
   std::vector<std::vector<EyeSegment>> segments(npix * spp);
   std::vector<ReceiverStats> row_stats(set.height);
   // Emitter sampling at sharp-lobe vertices, only when the split made a lobe sharp.
@@ -679,9 +705,11 @@ ReceiverSet GenerateReceivers(const Scene& scene, const FilterSampler& filter,
   receiver_paths.media_lights = media_lights.get();
   receiver_paths.media_samples = opt.media_direct_samples;
   receiver_paths.segments_per_ray = opt.segments_per_ray;
+  receiver_paths.splits = opt.coat_splits;
   CameraPathOptions camera_only = receiver_paths;
   camera_only.sharp_samples = 1;
   camera_only.segments_per_ray = -1;
+  camera_only.keep_points = false;
 
   // Camera-side supersampling: which pixels get camera paths.
   std::optional<CameraSideActivity> camera_side;
@@ -716,11 +744,9 @@ ReceiverSet GenerateReceivers(const Scene& scene, const FilterSampler& filter,
         st.escaped += end.escaped;
         st.transmittance_evals += end.transmittance_evals;
         st.media_direct_samples += end.media_direct_samples;
-        if (end.has_point) {
-          end.point.sample = uint32_t(index);
-          points[index] = end.point;
-          has_point[index] = 1;
-        }
+        st.split_vertices += size_t(end.split_vertices);
+        for (ShadingPoint& point : end.points) point.sample = uint32_t(index);
+        points[index] = std::move(end.points);
       }
       if (const int paths = camera_side ? camera_side->paths(x, y, opt.camera_paths) : 0; paths > 0) {
         ++st.camera_active_pixels;
@@ -732,9 +758,10 @@ ReceiverSet GenerateReceivers(const Scene& scene, const FilterSampler& filter,
 
   // Compact the shading points in sample order (deterministic).
   for (size_t i = 0; i < points.size(); ++i) {
-    if (!has_point[i]) continue;
-    set.samples[i].point = int32_t(set.points.size());
-    set.points.push_back(points[i]);
+    if (points[i].empty()) continue;
+    set.samples[i].first_point = int32_t(set.points.size());
+    set.samples[i].point_count = uint32_t(points[i].size());
+    set.points.insert(set.points.end(), points[i].begin(), points[i].end());
   }
   for (size_t i = 0; i < segments.size(); ++i) {
     if (segments[i].empty()) continue;
@@ -752,6 +779,7 @@ ReceiverSet GenerateReceivers(const Scene& scene, const FilterSampler& filter,
     set.stats.camera_pilot_paths += st.camera_pilot_paths;
     set.stats.camera_active_pixels += st.camera_active_pixels;
     set.stats.media_direct_samples += st.media_direct_samples;
+    set.stats.split_vertices += st.split_vertices;
   }
   return set;
 }

@@ -44,7 +44,10 @@ struct CameraSample {
   // Emission seen along the camera path (emitters, environment, next-event estimation at sharp
   // vertices); with ReceiverOptions::camera_paths, the pixel's camera-side mean instead.
   RGB emitted;
-  int32_t point = -1;     // index of its shading point, -1 if the path ended without one
+  // Its shading points: [first_point, first_point + point_count), the rough parts of the
+  // vertices its path split at, then the one it ended on (none if it ended without one).
+  int32_t first_point = -1;
+  uint32_t point_count = 0;
   int32_t first_segment = -1;  // its eye segments: [first_segment, first_segment + segment_count)
   uint32_t segment_count = 0;
 };
@@ -56,6 +59,7 @@ struct ReceiverStats {
   size_t camera_pilot_paths = 0;   // pilot paths (not in the image)
   size_t camera_active_pixels = 0; // pixels that got camera_paths more paths
   size_t media_direct_samples = 0; // samples of the emitters' single scattering (media_direct_samples)
+  size_t split_vertices = 0;       // receiver-path vertices split between a coat and its base (coat_splits)
 };
 
 struct ReceiverSet {
@@ -96,6 +100,11 @@ struct ReceiverOptions {
   // receiver samples; the gather still runs on the receivers. 0: no pilot, each sample keeps
   // its own (the estimator before this option).
   int camera_paths = 0;
+  // Mixed vertices (a sharp or delta coat over a rough base) split per camera path, at most: the
+  // base becomes a receiver and the coat's reflection is followed, each always, instead of one
+  // chosen at random (docs/rendering.md, "Mixed vertices"). Later mixed vertices choose. 0: every
+  // mixed vertex chooses (a sample that follows the coat has no receiver on the base).
+  int coat_splits = 0;
 };
 // The default of --param camera_paths for a scene whose camera paths can collect light by
 // themselves (render_job.cpp, CameraPathsFor).

@@ -23,6 +23,21 @@ inline std::string GlossyPlane(float alpha) {
   return s.replace(at, key.size(), "\"float roughness\" " + std::to_string(alpha));
 }
 
+// The same scene with the plane a clear coat of Trowbridge-Reitz roughness `roughness` (0: a
+// smooth, delta coat) over a grey diffuse base: a mixed vertex for every camera sample that
+// reaches the plane (the coat-split tests, tests/scenes/test_coat_split.cpp).
+inline std::string CoatedPlane(float roughness) {
+  std::string s = GlossyPlane(0.02f);
+  const std::string key = "Material \"conductor\"";
+  const size_t at = s.find(key);
+  const size_t end = s.find('\n', at);
+  if (at == std::string::npos || end == std::string::npos)
+    throw std::runtime_error("scenes/glossy-plane/scene.pbrt: no plane material to replace");
+  return s.replace(at, end - at,
+                   "Material \"coateddiffuse\" \"rgb reflectance\" [0.5 0.5 0.5] \"float roughness\" " +
+                       std::to_string(roughness) + " \"bool remaproughness\" false");
+}
+
 // Pixel rectangles [x0, x0 + w) × [y0, y0 + h) of GlossyPlane's image.
 struct PixelRect {
   int x0, y0, w, h;

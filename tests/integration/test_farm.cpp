@@ -226,6 +226,29 @@ TEST(Farm, ElementBoundOnWorkerProcessesMatchesTheDirectRenderBitForBit) {
   EXPECT_EQ(farm.stats["clamp"], direct.stats["clamp"]);
 }
 
+// Split mixed vertices (a clear coat over a grey base): several receivers per camera sample,
+// shipped to the workers in the receiver set and summed per sample, give the direct render's bits.
+TEST(Farm, SplitCoatVerticesOnWorkerProcessesMatchTheDirectRenderBitForBit) {
+  TempDir dir;
+  const std::string scene = dir.Write("coated.pbrt", testing::CoatedPlane(0.001f));
+  std::vector<std::string> args = {"--method", "lightcuts", "--resolution", "24x16", "--lights", "300",
+                                   "--seed", "6", "--spp", "2", "--param", "coat_splits=2"};
+  RenderSettings s;
+  s.method = "lightcuts";
+  s.width = 24;
+  s.height = 16;
+  s.lights = 300;
+  s.seed = 6;
+  s.spp = 2;
+  s.params = {"coat_splits=2"};
+  const RenderOutput direct = RenderScene(scene, s);
+  ASSERT_GT(direct.stats["receivers"]["points_per_sample"].get<double>(), 1.0);
+
+  const FarmRender farm = SubmitToTwoWorkers(dir, scene, "coated", args);
+  EXPECT_TRUE(SameBits(farm.image, direct.image));
+  EXPECT_EQ(farm.stats["receivers"], direct.stats["receivers"]);
+}
+
 // The path tracer on worker processes: tiles × sample passes, the passes of a pixel summed in
 // task order, give the direct render's bits (the cloud: NanoVDB density, delta and ratio tracking).
 TEST(Farm, PathTracedMediaSceneOnWorkerProcessesMatchesTheDirectRenderBitForBit) {

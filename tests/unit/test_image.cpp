@@ -324,6 +324,26 @@ TEST(Metrics, HandComputedExample) {
   EXPECT_DOUBLE_EQ(m.rmse, std::sqrt(9.0 / 6.0));
 }
 
+// Specks: a black dot on a flat region and a bright one count; an edge the reference has does
+// not (the image's pixel lies within its neighbourhood's range), nor does an unlit pixel.
+TEST(Metrics, SpecksCountDotsTheReferenceLacksButNotItsEdges) {
+  Image ref(8, 8), img(8, 8);
+  for (int y = 0; y < 8; ++y)
+    for (int x = 0; x < 8; ++x) ref.at(x, y) = RGB(x < 4 ? 1.f : 0.1f);  // an edge at x = 4
+  ref.at(7, 7) = RGB(0.f);  // unlit
+  img = ref;
+  EXPECT_EQ(CompareImages(ref, img).speck_share, 0.0);
+  img.at(4, 3) = RGB(1.f);  // the edge's dark side showing the bright side: within the 3×3 range
+  img.at(7, 7) = RGB(5.f);  // unlit in the reference: not counted
+  EXPECT_EQ(CompareImages(ref, img).speck_share, 0.0);
+  img.at(1, 1) = RGB(0.f);   // black on the bright side
+  img.at(6, 2) = RGB(0.4f);  // more than 3× the dark side's largest neighbour (0.1)
+  const ErrorMetrics m = CompareImages(ref, img);
+  EXPECT_EQ(m.dark_specks, 1u);
+  EXPECT_EQ(m.bright_specks, 1u);
+  EXPECT_DOUBLE_EQ(m.speck_share, 2.0 / 63.0);
+}
+
 TEST(Metrics, ExcludeAboveLeavesOutBrightReferencePixels) {
   // A bright reference pixel (an emitter's) that the image misses dominates the error; left out,
   // the rest is compared as if it were the whole image.

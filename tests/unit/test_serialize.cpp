@@ -53,7 +53,12 @@ ReceiverSet SampleReceivers() {
     cs.pixel = s / 2;
     cs.weight = 0.25f * float(s + 1);
     cs.emitted = RGB(float(s));
-    cs.point = s == 3 ? -1 : int32_t(s);
+    // Sample 0 has point 0; sample 1 points 1 and 2 (a split vertex and the end of its path);
+    // samples 2 and 3 none.
+    if (s < 2) {
+      cs.first_point = int32_t(s);
+      cs.point_count = s + 1;
+    }
     r.samples.push_back(cs);
   }
   for (uint32_t i = 0; i < 3; ++i) {
@@ -61,7 +66,7 @@ ReceiverSet SampleReceivers() {
     p.p = Vec3(float(i), 2, 3);
     p.throughput = RGB(0.5f);
     p.material = i;
-    p.sample = i;
+    p.sample = std::min(i, 1u);
     p.depth = uint8_t(i + 1);
     r.points.push_back(p);
   }
@@ -104,7 +109,10 @@ TEST(Serialize, ReceiverSetRoundTrip) {
   EXPECT_EQ(out.stats.escaped, 1u);
   ASSERT_EQ(out.samples.size(), 4u);
   ASSERT_EQ(out.points.size(), 3u);
-  EXPECT_EQ(out.samples[3].point, -1);
+  EXPECT_EQ(out.samples[3].first_point, -1);
+  EXPECT_EQ(out.samples[3].point_count, 0u);
+  EXPECT_EQ(out.samples[1].first_point, 1);
+  EXPECT_EQ(out.samples[1].point_count, 2u);
   EXPECT_TRUE(SameBits(out.samples[2].weight, 0.75f));
   EXPECT_EQ(out.points[2].depth, 3);
   EXPECT_TRUE(SameBits(out.points[1].p, Vec3(1, 2, 3)));
@@ -187,7 +195,10 @@ TEST(Serialize, RejectsInvalidEnumsBoolsAndIndices) {
   EXPECT_THROW(DeserializeLightSet(bad_bool), SerializeError);
 
   ReceiverSet r = SampleReceivers();
-  r.samples[0].point = 17;  // no such shading point
+  r.samples[0].first_point = 17;  // no such shading point
+  EXPECT_THROW(DeserializeReceiverSet(SerializeReceiverSet(r)), SerializeError);
+  r = SampleReceivers();
+  r.samples[1].point_count = 3;  // runs past the last shading point
   EXPECT_THROW(DeserializeReceiverSet(SerializeReceiverSet(r)), SerializeError);
   r = SampleReceivers();
   r.samples[1].pixel = 99;  // outside a 2x1 image
