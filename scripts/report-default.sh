@@ -67,7 +67,7 @@ path_args() {
   echo --spp $(( (n + passes - 1) / passes )) --passes "$passes"
 }
 json() { /usr/bin/python3 -c "import json,sys; d=json.load(open(sys.argv[1])); print(eval(sys.argv[2], {'d': d}))" "$@"; }
-error() { "$lf" compare --resize --json "$1" "$2" | /usr/bin/python3 -c "import json,sys; d=json.load(sys.stdin); print(d['rel_l1'], d['rel_l2'])"; }
+error() { "$lf" compare --resize --json "$1" "$2" | /usr/bin/python3 -c "import json,sys; d=json.load(sys.stdin); print(d['rel_l1'], d['rel_l2'], d['speck_share'])"; }
 
 rows=()
 for name in "${scenes[@]}"; do
@@ -100,7 +100,7 @@ for res in "${resolutions[@]}"; do
     truth="$w/truth.exr"
     truth_label=$(json "$w/truth.json" "'path-traced here (\`--method path\`, progressive): %d passes x %d spp in %.0f s; relative standard error of its image mean %.4f, of its 90th-percentile pixel %.3f' % (d['passes'], d['spp'], sum(d['pass_times_s']), d['noise']['rel_stderr'], d['noise']['p90_rel_stderr'])")
   fi
-  read -r e_default e2_default < <(error "$truth" "$w/default.exr")
+  read -r e_default e2_default sp_default < <(error "$truth" "$w/default.exr")
 
   # Path's cost model from 1 and 4 spp, then its equal-time run.
   render "$scene" --quiet "${size[@]}" --method path --spp 1 --seed 3 --out "$w/path1.exr" --stats "$w/path1.json"
@@ -124,12 +124,12 @@ print(max(1, min(65536, round($path_spp * r))) if abs(r - 1) > 0.1 else 0)")
     t_path=$(json "$w/path.json" "d['time']['total_s']")
     path_spp=$(json "$w/path.json" "d['spp'] * d.get('passes', 1)")
   fi
-  read -r e_path e2_path < <(error "$truth" "$w/path.exr")
+  read -r e_path e2_path sp_path < <(error "$truth" "$w/path.exr")
   # The camera-side supersampling's share: active pixels and the receivers phase (pilot and
   # camera paths included) against the whole render.
   camera=$(json "$w/default.json" "'active in %d of %d pixels; the receivers phase, pilot and camera paths included, took %.1f s' % (d['receivers'].get('camera_active_pixels', 0), d['resolution'][0] * d['resolution'][1], d['time']['phases'].get('receivers', 0))")
   shown_res=$(json "$w/default.json" "'%dx%d' % tuple(d['resolution'])")
-  rows+=("$name|$shown_res|$method|$rule|$lights|$spp|$t_default|$e_default|$e2_default|$path_spp|$t_path|$e_path|$e2_path|$truth_label|$camera")
+  rows+=("$name|$shown_res|$method|$rule|$lights|$spp|$t_default|$e_default|$e2_default|$sp_default|$path_spp|$t_path|$e_path|$e2_path|$sp_path|$truth_label|$camera")
 done
 done
 
@@ -153,16 +153,16 @@ md = ["# The default render against the path tracer at equal time" if not forced
       "`rel_l1` = ‖truth − image‖₁ / ‖truth‖₁ and `rel_l2` over all pixel channels. `ratio` is path's " +
       ("rel_l1 over the default's: above 1 the default is closer to the truth at equal time." if not forced else
        f"rel_l1 over `{forced}`'s: above 1 `{forced}` is closer to the truth at equal time."), "",
-      "| scene | resolution | default: method (auto's rule) | lights | time | rel_l1 | rel_l2 | path spp | path time | path rel_l1 | path rel_l2 | ratio | verdict |",
-      "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+      "| scene | resolution | default: method (auto's rule) | lights | time | rel_l1 | rel_l2 | specks | path spp | path time | path rel_l1 | path rel_l2 | path specks | ratio | verdict |",
+      "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
 if forced:
     md[-2] = md[-2].replace("default: method (auto's rule)", "method")
 notes = []
-for (name, res, method, rule, lights, spp, t, e, e2, pspp, tp, ep, ep2, truth, camera) in lines:
+for (name, res, method, rule, lights, spp, t, e, e2, sp, pspp, tp, ep, ep2, psp, truth, camera) in lines:
     ratio = float(ep) / max(float(e), 1e-12)
     verdict = (f"{method} wins" if forced else "default wins") if ratio > 1.1 else ("path wins" if ratio < 1 / 1.1 else "level")
-    md.append(f"| {name} | {res} | {method}{f' ({rule})' if rule else ''} | {lights} | {float(t):.1f} s | {float(e):.4f} | {float(e2):.4f} | "
-              f"{pspp} | {float(tp):.1f} s | {float(ep):.4f} | {float(ep2):.4f} | {ratio:.2f} | {verdict} |")
+    md.append(f"| {name} | {res} | {method}{f' ({rule})' if rule else ''} | {lights} | {float(t):.1f} s | {float(e):.4f} | {float(e2):.4f} | {100 * float(sp):.2f}% | "
+              f"{pspp} | {float(tp):.1f} s | {float(ep):.4f} | {float(ep2):.4f} | {100 * float(psp):.2f}% | {ratio:.2f} | {verdict} |")
     notes.append(f"- {name}, {res}: truth {truth}." + (f" Camera-side supersampling: {camera}."
                                                  if method != "path" else ""))
     if method == "path" and not forced:
@@ -170,7 +170,9 @@ for (name, res, method, rule, lights, spp, t, e, e2, pspp, tp, ep, ep2, truth, c
                      "was closer to the truth at equal time (docs/methods/media-elements.md; docs/rendering.md, `auto`), so both columns are "
                      "the path tracer and differ only by seed and spp.")
 md += ["", "`level`: within 10%. The verdict is on rel_l1; rel_l2 weighs the brightest pixels most "
-       "(a visible light's edges and highlights), so read both. Truths:", ""] + notes + ["",
+       "(a visible light's edges and highlights), so read both. `specks`: the share of lit truth pixels "
+       "the image has below 0.3x the smallest or above 3x the largest truth value in their 3x3 neighbourhood "
+       "(single-pixel black or bright dots; the truth's own edges never count; `lightfarm compare`). Truths:", ""] + notes + ["",
        "A path-traced truth carries its own noise (stated above): per pixel it is far above the image mean's, "
        "and it adds to both columns' errors alike. "
        "Times are wall times of the whole render in one process on this shared machine, one run each. "

@@ -238,7 +238,7 @@ Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, Ph
   ropt.segments_per_ray = media_rows ? segments_per_ray : -1;
   ropt.media_direct_samples = media_rows ? plan.matrix_options.media_direct_samples : 0;
   ropt.sharp_samples = plan.matrix_options.sharp_samples;
-  ropt.coat_splits = plan.matrix_options.coat_splits;
+  ropt.splits = plan.matrix_options.splits;
   ropt.camera_paths = camera_paths >= 0 ? camera_paths : CameraPathsFor(scene, plan.effects, ropt.media_direct_samples > 0);
   *plan.receivers = GenerateReceivers(scene, filter_sampler, ropt);
   timer.End("receivers");

@@ -159,7 +159,7 @@ RGB PathTracer::Li(Ray ray, int medium, int max_depth, Rng& rng, PathCounters* c
       if (!bs || !(bs->pdf > 0) || bs->f.IsBlack()) break;
       const Vec3 wi = frame.FromLocal(bs->wi);
       beta *= bs->f * (std::abs(bs->wi.z) / bs->pdf);
-      if (at_first) beta *= bs->IsSpecular() ? at_first->other : at_first->arrival(wo_local, bs->wi);
+      if (at_first) beta *= bs->IsSpecular() ? at_first->specular : at_first->arrival(wo_local, bs->wi);
       if (bs->flags & kBxDFTransmission) eta_scale *= bs->eta * bs->eta;
       specular = bs->IsSpecular();
       prev_p = hit.p;

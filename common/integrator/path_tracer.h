@@ -57,10 +57,10 @@ struct PathCounters {
 // from: the clamp compensation (clamp_compensation.cpp) traces, from a receiver, only the share
 // of each first-vertex direction that the element bound removed. The first surface's emission is
 // weighted by `emission`, light arriving there along a non-delta direction wi (local shading
-// frame, wo towards the path's origin) by arrival(wo, wi), and everything else (delta lobes, a
-// first vertex in a medium) by `other`.
+// frame, wo towards the path's origin) by arrival(wo, wi), light leaving it by a delta (or sharp)
+// lobe by `specular`, and a first vertex in a medium by `other`.
 struct FirstVertexWeight {
-  float emission = 1, other = 1;
+  float emission = 1, other = 1, specular = 1;
   std::function<float(Vec3 wo, Vec3 wi)> arrival;
 };
 

@@ -10,8 +10,10 @@
 // the light arriving at x along ω split by the direction ω' it reached y from. One estimate per
 // sample: ω from the receiver's BSDF (non-delta lobes: the matrix holds only those), y the first
 // opaque surface along ω, and L_i(x, ω) path traced (Engelhardt et al. 2012) with the receiver's
-// remaining depth, weighting what y gathers by w (PathTracer's FirstVertexWeight; light that
-// leaves y by a delta lobe, which no VPL carries, keeps only the geometric share). The bound's
+// remaining depth, weighting what y gathers by w (PathTracer's FirstVertexWeight). Light that
+// leaves y by a delta or sharp lobe gets none: no VPL carries it, so no element was clamped on it
+// (the caustic photons carry it whole, and counting a share here counted it twice: a bright rim
+// where a floor meets a glass). A purely specular y that does not emit is not traced. The bound's
 // share of an emitter's own light (a glossy receiver seeing a small light) is also estimated by
 // one emitter sample per sample, MIS-combined (power heuristic) with the BSDF samples that hit
 // the emitter: found by BSDF sampling alone, a small light's share is mostly fireflies. (Scenes
@@ -57,6 +59,7 @@ bool LightingMatrix::BoundWeight(const RowData& r, const Material& m, const BSDF
                         : 1.f;
   weight->emission = w_clamp + (emits ? kept * (1.f - bound_area_ / area_kernel) * mis : 0.f);
   weight->other = w_clamp;
+  weight->specular = 0.f;
   const float limit = bound_surface_;
   weight->arrival = [&my, fx, g, kept, limit, w_clamp](Vec3 wo, Vec3 wi_y) {
     // As the surface VPL at y evaluates it: arrival wi_y, leaving towards the receiver (wo).
@@ -121,8 +124,20 @@ RGBAccum LightingMatrix::ClampCompensation(uint32_t row, MatrixCounters* counter
     const float d2 = LengthSquared(hit.p - r.p);
     const float w = std::max(0.f, 1.f - d2 / clamp_distance2_);
     FirstVertexWeight bound_weight;
-    const bool bound = bound_binds_ && BoundWeight(r, m, *bs, hit, d2, w, &bound_weight);
+    bool bound = bound_binds_ && BoundWeight(r, m, *bs, hit, d2, w, &bound_weight);
     if (!bound && !(w > 0)) continue;
+    if (!bound) {
+      // The clamp's share w of everything y gathers, except what leaves it by a delta or sharp lobe.
+      const Shape& sy = scene_.shapes()[hit.shape];
+      const uint32_t flags_y = MaterialFlags(scene_.materials()[sy.material]);
+      if (flags_y & kBxDFSpecular) {
+        if (IsPurelySpecular(flags_y) && sy.area_emitter < 0) continue;
+        bound_weight.emission = bound_weight.other = w;
+        bound_weight.specular = 0.f;
+        bound_weight.arrival = [w](Vec3, Vec3) { return w; };
+        bound = true;
+      }
+    }
     ++counters->compensation_paths;
     const RGB Li = compensation_tracer_->Li({o, wi, kInfinity}, medium, r.light_depth_budget, rng, &pc,
                                             bound ? &bound_weight : nullptr);

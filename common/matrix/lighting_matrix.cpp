@@ -196,7 +196,7 @@ void ReadMatrixParams(const OptionMap& params, uint64_t seed, MatrixOptions* opt
   options->caustic_volume_radius = float(params.GetDouble("caustic_volume_radius", 0.01, 1e-6, 1.0));
   options->sharp_roughness = params.Has("sharp_roughness") ? float(params.GetDouble("sharp_roughness", 0, 0, 1)) : -1.f;
   options->sharp_samples = int(params.GetInt("sharp_samples", 8, 1, 256));
-  options->coat_splits = int(params.GetInt("coat_splits", kDefaultCoatSplits, 0, 16));
+  options->splits = int(params.GetInt("splits", kDefaultSplits, 0, kMaxSplits));
 }
 
 float SharpAlpha(const MatrixOptions& options, size_t lights) {

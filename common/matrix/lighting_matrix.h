@@ -23,8 +23,8 @@ namespace lightfarm {
 struct DiffuseGeometryBatch;
 struct ReceiverBatch;
 
-// Mixed vertices a camera path splits at by default (--param coat_splits).
-inline constexpr int kDefaultCoatSplits = 1;
+// Vertices a camera path splits at by default (--param splits, ReceiverOptions::splits).
+inline constexpr int kDefaultSplits = 3;
 
 struct MatrixOptions {
   // Geometry-term clamp for virtual lights: 1/d² is replaced by 1/max(d², d_min²) with
@@ -73,9 +73,8 @@ struct MatrixOptions {
   float sharp_roughness = -1;
   // Emitter samples at each sharp-lobe vertex of a camera path (ReceiverOptions::sharp_samples).
   int sharp_samples = 8;
-  // Mixed vertices (a sharp coat over a rough base) a camera path splits at instead of choosing
-  // (ReceiverOptions::coat_splits).
-  int coat_splits = kDefaultCoatSplits;
+  // Vertices a camera path splits at instead of choosing (ReceiverOptions::splits).
+  int splits = kDefaultSplits;
 };
 // The sharp-lobe threshold a render uses (docs/rendering.md, "Sharp lobes"): the option when
 // given, else √(20/N) for N virtual lights (a lobe that sees fewer than ~40 of them makes

@@ -3,6 +3,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <array>
 #include <optional>
 #include <span>
 
@@ -88,9 +89,8 @@ struct CameraPathOptions {
   int media_samples = 0;
   // Eye segments per opaque medium piece, minus one (AppendEyeSegments); -1: no segments.
   int segments_per_ray = -1;
-  // Vertices per path at which a material with a sharp or delta lobe over a rough base (a clear
-  // coat) splits instead of choosing: the base becomes a receiver and the lobe is followed, each
-  // with its own weight (ReceiverOptions::coat_splits). Later such vertices choose.
+  // Vertices per path that split instead of choosing (ReceiverOptions::splits): a sharp or delta
+  // coat over a rough base, a smooth dielectric. Later such vertices choose.
   int splits = 0;
   // Whether the path's receivers are kept (false for paths that only collect camera-side light).
   bool keep_points = true;
@@ -139,138 +139,195 @@ RGB DirectInScattering(const Scene& scene, const EmitterSampler& lights, const M
   return sum.ToRGB();
 }
 
-// Follows a camera ray through specular (delta) interactions to its first non-specular vertex,
-// collecting the emission seen along the way, and what `opt` asks for: at a vertex that follows a
-// sharp lobe, emission by MIS of the lobe's sample and emitter samples; along medium pieces, eye
-// segments and the emitters' single scattering.
+// Follows a camera ray through specular (delta and sharp) interactions to its non-specular
+// vertices, collecting the emission seen along the way, and what `opt` asks for: at a vertex that
+// follows a sharp lobe, emission by MIS of the lobe's sample and emitter samples; along medium
+// pieces, eye segments and the emitters' single scattering. The first opt.splits vertices that
+// offer two ways on split and take both (docs/rendering.md, "Split vertices"): a clear coat over a
+// rough base makes a receiver and follows the coat; a smooth dielectric follows its reflection
+// and, later, its refraction. Later ones choose one at random.
 PathEnd TraceCameraPath(const Scene& scene, const CameraPathOptions& opt, Ray ray, Rng& rng) {
   const EmitterSampler* lights = opt.sharp_lights;
   const int sharp_samples = opt.sharp_samples, max_depth = opt.max_depth;
   PathEnd end;
-  RGB beta(1.f);
-  int depth = 0, passthrough = 0;
-  int medium = scene.camera_medium();
-  // After a sharp-lobe sample: its density (the lobe's, given the lobe) and where it left from,
-  // for the MIS weight of an emitter the ray finds (against sharp_samples emitter samples).
-  bool after_sharp = false;
-  float sharp_pdf = 0;
-  Vec3 sharp_p;
+  // One way through the scene: its ray and weight and, after a sharp-lobe sample, the lobe's
+  // density given the lobe and where it left from, for the MIS weight of an emitter the ray finds
+  // (against sharp_samples emitter samples).
+  struct Branch {
+    Ray ray;
+    RGB beta{1.f};
+    int depth = 0, passthrough = 0, medium = -1;
+    bool after_sharp = false;
+    float sharp_pdf = 0;
+    Vec3 sharp_p;
+    bool may_split = true;
+  };
+  // Ways a split left for later, followed depth first when the current one ends (one per split).
+  std::array<Branch, kMaxSplits> pending;
+  int npending = 0;
+  Branch b;
+  b.ray = ray;
+  b.medium = scene.camera_medium();
   for (;;) {
-    SurfaceHit hit;
-    bool found = scene.Intersect(ray, &hit);
-    // Attenuation of the surface (and emission) seen at the end of this ray segment: an
-    // unbiased transmittance estimate (closed form in homogeneous media).
-    if (medium >= 0) {
-      const Medium& med = scene.media()[medium];
-      const float tmax = found ? hit.t : kInfinity;
-      if (depth < max_depth && (opt.segments_per_ray >= 0 || opt.media_lights)) {
-        // The scattering vertex on this piece would be the path's depth + 1.
-        const MediumTrack track = CameraPieceTrack(med, ray, tmax);
-        if (opt.segments_per_ray >= 0)
-          AppendEyeSegments(track, medium, ray, beta, opt.segments_per_ray, uint8_t(std::min(depth + 1, 255)),
-                            &end.segments);
-        if (opt.media_lights && !track.empty()) {
-          end.emitted += beta * DirectInScattering(scene, *opt.media_lights, track, ray, medium, opt.media_samples, rng);
-          end.media_direct_samples += size_t(opt.media_samples);
+    for (;;) {
+      SurfaceHit hit;
+      const bool found = scene.Intersect(b.ray, &hit);
+      // Attenuation of the surface (and emission) seen at the end of this ray segment: an
+      // unbiased transmittance estimate (closed form in homogeneous media).
+      if (b.medium >= 0) {
+        const Medium& med = scene.media()[b.medium];
+        const float tmax = found ? hit.t : kInfinity;
+        if (b.depth < max_depth && (opt.segments_per_ray >= 0 || opt.media_lights)) {
+          // The scattering vertex on this piece would be the path's depth + 1.
+          const MediumTrack track = CameraPieceTrack(med, b.ray, tmax);
+          if (opt.segments_per_ray >= 0)
+            AppendEyeSegments(track, b.medium, b.ray, b.beta, opt.segments_per_ray,
+                              uint8_t(std::min(b.depth + 1, 255)), &end.segments);
+          if (opt.media_lights && !track.empty()) {
+            end.emitted += b.beta * DirectInScattering(scene, *opt.media_lights, track, b.ray, b.medium,
+                                                       opt.media_samples, rng);
+            end.media_direct_samples += size_t(opt.media_samples);
+          }
+          b.beta *= track.TransmittanceToEnd();
+        } else {
+          b.beta *= med.Transmittance({b.ray.o, b.ray.d, tmax}, rng);
         }
-        beta *= track.TransmittanceToEnd();
-      } else {
-        beta *= med.Transmittance({ray.o, ray.d, tmax}, rng);
+        ++end.transmittance_evals;
+        if (b.beta.IsBlack()) break;
       }
-      ++end.transmittance_evals;
-      if (beta.IsBlack()) return end;
-    }
-    if (!found) {
-      if (!after_sharp) {
-        end.emitted += beta * scene.EnvironmentRadiance(ray.d);
-      } else {
-        for (uint32_t i = 0; i < scene.infinite_emitters().size(); ++i)
-          end.emitted += beta * scene.infinite_emitters()[i].Le(ray.d) *
-                         PowerHeuristic(sharp_pdf, float(sharp_samples) * lights->PdfInfinite(i, ray.d));
+      if (!found) {
+        if (!b.after_sharp) {
+          end.emitted += b.beta * scene.EnvironmentRadiance(b.ray.d);
+        } else {
+          for (uint32_t i = 0; i < scene.infinite_emitters().size(); ++i)
+            end.emitted += b.beta * scene.infinite_emitters()[i].Le(b.ray.d) *
+                           PowerHeuristic(b.sharp_pdf, float(sharp_samples) * lights->PdfInfinite(i, b.ray.d));
+        }
+        end.escaped = true;
+        break;
       }
-      end.escaped = true;
-      return end;
-    }
-    Vec3 wo = -ray.d;
-    {
-      const RGB Le = scene.EmittedRadiance(hit, wo);
-      if (!Le.IsBlack()) {
-        const int e = scene.shapes()[hit.shape].area_emitter;
-        const float w = after_sharp && e >= 0 ? PowerHeuristic(sharp_pdf, float(sharp_samples) * lights->PdfArea(uint32_t(e), sharp_p, hit)) : 1.f;
-        end.emitted += beta * Le * w;
+      const Vec3 wo = -b.ray.d;
+      {
+        const RGB Le = scene.EmittedRadiance(hit, wo);
+        if (!Le.IsBlack()) {
+          const int e = scene.shapes()[hit.shape].area_emitter;
+          const float w = b.after_sharp && e >= 0
+                              ? PowerHeuristic(b.sharp_pdf, float(sharp_samples) * lights->PdfArea(uint32_t(e), b.sharp_p, hit))
+                              : 1.f;
+          end.emitted += b.beta * Le * w;
+        }
       }
+      const Shape& shape = scene.shapes()[hit.shape];
+      const Material& m = scene.materials()[shape.material];
+      const uint32_t flags = MaterialFlags(m);
+      if (flags == 0) {  // interface: not a surface, only the medium changes
+        if (++b.passthrough > 64) break;
+        b.medium = scene.MediumAfter(hit, b.ray.d, b.medium);
+        b.ray.o = OffsetRayOrigin(hit.p, hit.ng, b.ray.d);
+        continue;
+      }
+      b.after_sharp = false;
+      if (++b.depth > max_depth) break;
+      const Frame frame(hit.ns);
+      const Vec3 wo_local = frame.ToLocal(wo);
+      const auto make_receiver = [&](RGB throughput) {
+        if (ReflectsNothing(m) || !opt.keep_points) return;
+        ShadingPoint& point = end.points.emplace_back();
+        point.p = hit.p;
+        point.ng = hit.ng;
+        point.ns = hit.ns;
+        point.wo = wo;
+        point.throughput = throughput;
+        point.material = uint32_t(shape.material);
+        point.depth = uint8_t(std::min(b.depth, 255));
+        point.medium_out = int16_t(shape.medium_transition ? shape.outside_medium : b.medium);
+        point.medium_in = int16_t(shape.medium_transition ? shape.inside_medium : b.medium);
+      };
+      const auto continue_along = [&](Branch& branch, const BSDFSample& bs) {
+        const Vec3 wi = frame.FromLocal(bs.wi);
+        branch.medium = scene.MediumAfter(hit, wi, b.medium);
+        branch.ray = {OffsetRayOrigin(hit.p, hit.ng, wi), wi, kInfinity};
+      };
+      // A material with delta (or sharp) and rough lobes (a smooth coat over a diffuse base). The
+      // matrix evaluates only the rough lobes, so a receiver here carries the light the base
+      // reflects (f_base already holds what the coat transmits); the coat's reflection is carried
+      // by following its lobe. Split: both, each with weight 1: the receiver with beta, the lobe
+      // with beta·f·cos/pdf_lobe; every path is counted once and no sample loses the base.
+      // Choose: follow the lobe with probability p, else become a receiver weighted by 1/(1-p).
+      const float p_specular = SpecularSamplingProbability(m, wo_local);
+      const bool mixed = !IsPurelySpecular(flags) && p_specular > 0;
+      // A smooth dielectric: reflection with probability r, else refraction. Split: both, each
+      // with weight f·cos (the sample's pdf is the discrete choice, bsdf.h).
+      const float p_reflect = mixed ? -1.f : DeltaReflectionProbability(m, wo_local);
+      const bool split =
+          b.may_split && end.split_vertices < opt.splits && (mixed || (p_reflect > 0 && b.depth < max_depth));
+      // After a split only the way that carries most of the light goes on splitting (the
+      // sampling probabilities say which), so the budget is spent along the path that matters.
+      float uc = rng.Uniform();
+      float p_choice = std::max(p_specular, 1e-6f);
+      if (split && mixed) {
+        ++end.split_vertices;
+        make_receiver(b.beta);
+        if (b.depth >= max_depth) break;
+        uc *= p_specular;  // SampleBSDF picks the delta lobe exactly when uc < p_specular (bsdf.h)
+        p_choice = 1.f;
+      } else if (split) {
+        ++end.split_vertices;
+        // Both ways of a smooth dielectric (uc < r picks the reflection); its directions take no
+        // random numbers. The heavier goes on now, the other waits.
+        const std::optional<BSDFSample> sampled[2] = {
+            SampleBSDF(m, wo_local, 0.f, {0.5f, 0.5f}, TransportMode::kRadiance),
+            SampleBSDF(m, wo_local, p_reflect, {0.5f, 0.5f}, TransportMode::kRadiance)};
+        Branch next[2];
+        int n = 0;
+        for (const std::optional<BSDFSample>& w : sampled) {
+          if (!w || !(w->pdf > 0) || !w->IsSpecular()) continue;
+          Branch& nb = next[n];
+          nb = b;
+          nb.beta = b.beta * w->f * std::abs(w->wi.z);
+          if (nb.beta.IsBlack() || !nb.beta.IsFinite()) continue;
+          continue_along(nb, *w);
+          ++n;
+        }
+        if (n == 0) break;
+        // next[0] is the reflection when both exist; the likelier way goes on now.
+        if (n == 2) {
+          next[0].may_split = p_reflect >= 0.5f;
+          next[1].may_split = !next[0].may_split;
+          if (!next[0].may_split) std::swap(next[0], next[1]);
+        }
+        end.specular_bounces += size_t(n);
+        if (n == 2) pending[size_t(npending++)] = next[1];
+        b = next[0];
+        continue;
+      } else if (!IsPurelySpecular(flags) && uc >= p_specular) {
+        make_receiver(b.beta / (1.f - p_specular));
+        break;
+      }
+      if (b.depth >= max_depth) break;
+      // Continue along a delta lobe (radiance transport); for a mixed material uc < p_specular
+      // makes SampleBSDF choose the delta lobe, and its pdf includes p_specular.
+      std::optional<BSDFSample> bs = SampleBSDF(m, wo_local, uc, {rng.Uniform(), rng.Uniform()}, TransportMode::kRadiance);
+      if (!bs || !(bs->pdf > 0) || !bs->IsSpecular()) break;
+      const float p_lobe = mixed ? std::max(p_specular, 1e-6f) : 1.f;
+      if (lights && HasSharpLobe(m)) {
+        // A sharp lobe is not a delta: emitters it reflects get an emitter sample too (MIS).
+        end.emitted += b.beta * SharpLobeDirectLight(scene, *lights, hit, m, frame, wo_local, p_lobe,
+                                                     mixed ? p_choice : 1.f, b.medium, sharp_samples, rng);
+        b.after_sharp = true;
+        b.sharp_pdf = bs->pdf / p_lobe;
+        b.sharp_p = hit.p;
+      }
+      // Split: the coat is always followed, so its weight is f·cos over its density given the coat.
+      if (split) bs->pdf /= p_specular;
+      b.beta *= bs->f * (std::abs(bs->wi.z) / bs->pdf);
+      if (b.beta.IsBlack() || !b.beta.IsFinite()) break;
+      if (split) b.may_split = p_specular >= 0.5f;
+      ++end.specular_bounces;
+      continue_along(b, *bs);
     }
-    const Shape& shape = scene.shapes()[hit.shape];
-    const Material& m = scene.materials()[shape.material];
-    uint32_t flags = MaterialFlags(m);
-    if (flags == 0) {  // interface: not a surface, only the medium changes
-      if (++passthrough > 64) return end;
-      medium = scene.MediumAfter(hit, ray.d, medium);
-      ray.o = OffsetRayOrigin(hit.p, hit.ng, ray.d);
-      continue;
-    }
-    after_sharp = false;
-    if (++depth > max_depth) return end;
-    Frame frame(hit.ns);
-    Vec3 wo_local = frame.ToLocal(wo);
-    const auto make_receiver = [&](RGB throughput) {
-      if (ReflectsNothing(m) || !opt.keep_points) return;
-      ShadingPoint& point = end.points.emplace_back();
-      point.p = hit.p;
-      point.ng = hit.ng;
-      point.ns = hit.ns;
-      point.wo = wo;
-      point.throughput = throughput;
-      point.material = uint32_t(shape.material);
-      point.depth = uint8_t(std::min(depth, 255));
-      point.medium_out = int16_t(shape.medium_transition ? shape.outside_medium : medium);
-      point.medium_in = int16_t(shape.medium_transition ? shape.inside_medium : medium);
-    };
-    // A material with delta (or sharp) and rough lobes (a smooth coat over a diffuse base). The
-    // matrix evaluates only the rough lobes, so a receiver here carries the light the base
-    // reflects (f_base already holds what the coat transmits); the coat's reflection is carried
-    // by following its lobe. Split (docs/rendering.md, "Mixed vertices"): both, each with
-    // weight 1: the receiver with beta, the lobe with beta·f·cos/pdf_lobe; every path is counted
-    // once and no sample loses the base. Choose (after opt.splits splits): follow the lobe with
-    // probability p, else become a receiver weighted by 1/(1-p).
-    const float p_specular = SpecularSamplingProbability(m, wo_local);
-    const bool mixed = !IsPurelySpecular(flags) && p_specular > 0;
-    const bool split = mixed && end.split_vertices < opt.splits;
-    float uc = rng.Uniform();
-    float p_choice = std::max(p_specular, 1e-6f);
-    if (split) {
-      ++end.split_vertices;
-      make_receiver(beta);
-      if (depth >= max_depth) return end;
-      // SampleBSDF picks the delta lobe exactly when uc < p_specular (bsdf.h contract).
-      uc *= p_specular;
-      p_choice = 1.f;
-    } else if (!IsPurelySpecular(flags) && uc >= p_specular) {
-      make_receiver(beta / (1.f - p_specular));
-      return end;
-    }
-    if (depth >= max_depth) return end;
-    // Continue along a delta lobe (radiance transport); for a mixed material uc < p_specular
-    // makes SampleBSDF choose the delta lobe, and its pdf includes p_specular.
-    auto bs = SampleBSDF(m, wo_local, uc, {rng.Uniform(), rng.Uniform()}, TransportMode::kRadiance);
-    if (!bs || !(bs->pdf > 0) || !bs->IsSpecular()) return end;
-    Vec3 wi = frame.FromLocal(bs->wi);
-    const float p_lobe = mixed ? std::max(p_specular, 1e-6f) : 1.f;
-    if (lights && HasSharpLobe(m)) {
-      // A sharp lobe is not a delta: emitters it reflects get an emitter sample too (MIS).
-      end.emitted += beta * SharpLobeDirectLight(scene, *lights, hit, m, frame, wo_local, p_lobe,
-                                                  mixed ? p_choice : 1.f, medium, sharp_samples, rng);
-      after_sharp = true;
-      sharp_pdf = bs->pdf / p_lobe;
-      sharp_p = hit.p;
-    }
-    // Split: the lobe is always followed, so its weight is f·cos over its density given the lobe.
-    if (split) bs->pdf /= p_specular;
-    beta *= bs->f * (std::abs(bs->wi.z) / bs->pdf);
-    if (beta.IsBlack() || !beta.IsFinite()) return end;
-    ++end.specular_bounces;
-    medium = scene.MediumAfter(hit, wi, medium);
-    ray = {OffsetRayOrigin(hit.p, hit.ng, wi), wi, kInfinity};
+    if (npending == 0) return end;
+    b = pending[size_t(--npending)];
   }
 }
 
@@ -705,7 +762,7 @@ ReceiverSet GenerateReceivers(const Scene& scene, const FilterSampler& filter,
   receiver_paths.media_lights = media_lights.get();
   receiver_paths.media_samples = opt.media_direct_samples;
   receiver_paths.segments_per_ray = opt.segments_per_ray;
-  receiver_paths.splits = opt.coat_splits;
+  receiver_paths.splits = opt.splits;
   CameraPathOptions camera_only = receiver_paths;
   camera_only.sharp_samples = 1;
   camera_only.segments_per_ray = -1;

@@ -59,7 +59,7 @@ struct ReceiverStats {
   size_t camera_pilot_paths = 0;   // pilot paths (not in the image)
   size_t camera_active_pixels = 0; // pixels that got camera_paths more paths
   size_t media_direct_samples = 0; // samples of the emitters' single scattering (media_direct_samples)
-  size_t split_vertices = 0;       // receiver-path vertices split between a coat and its base (coat_splits)
+  size_t split_vertices = 0;       // receiver-path vertices that split (ReceiverOptions::splits)
 };
 
 struct ReceiverSet {
@@ -100,12 +100,16 @@ struct ReceiverOptions {
   // receiver samples; the gather still runs on the receivers. 0: no pilot, each sample keeps
   // its own (the estimator before this option).
   int camera_paths = 0;
-  // Mixed vertices (a sharp or delta coat over a rough base) split per camera path, at most: the
-  // base becomes a receiver and the coat's reflection is followed, each always, instead of one
-  // chosen at random (docs/rendering.md, "Mixed vertices"). Later mixed vertices choose. 0: every
-  // mixed vertex chooses (a sample that follows the coat has no receiver on the base).
-  int coat_splits = 0;
+  // Vertices per camera path, at most, that split instead of choosing one way at random
+  // (docs/rendering.md, "Split vertices"): at a sharp or delta coat over a rough base the base
+  // becomes a receiver and the coat's reflection is followed; at a smooth dielectric both the
+  // reflection and the refraction are followed. Later such vertices choose. 0: every one chooses
+  // (a sample that follows a coat has no receiver on the base; one reflected by glass sees only
+  // the reflection).
+  int splits = 0;
 };
+// The most a camera path splits (--param splits).
+inline constexpr int kMaxSplits = 16;
 // The default of --param camera_paths for a scene whose camera paths can collect light by
 // themselves (render_job.cpp, CameraPathsFor).
 inline constexpr int kDefaultCameraPaths = 256;

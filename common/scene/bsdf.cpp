@@ -786,6 +786,12 @@ float SpecularSamplingProbability(const Material& m, Vec3 wo) {
   return 0.f;
 }
 
+float DeltaReflectionProbability(const Material& m, Vec3 wo) {
+  if (m.type != MaterialType::kDielectric || DielectricIsPassThrough(m) || !IsSmooth(m) || wo.z == 0) return -1.f;
+  const float r = FrDielectric(wo.z, m.eta.r);  // the same expression SampleDielectric uses
+  return r > 0.f && r < 1.f ? r : -1.f;
+}
+
 std::optional<BSDFSample> SampleBSDF(const Material& m, Vec3 wo, float uc, Vec2 u,
                                      TransportMode mode) {
   std::optional<BSDFSample> s;

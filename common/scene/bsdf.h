@@ -90,6 +90,13 @@ std::optional<BSDFSample> SampleBSDF(const Material& m, Vec3 wo, float uc, Vec2 
 // specular materials, 0 for materials without a delta lobe.
 float SpecularSamplingProbability(const Material& m, Vec3 wo);
 
+// For a material whose only lobes are two deltas chosen by a discrete probability (a smooth
+// dielectric: reflection and refraction), the probability r that SampleBSDF picks reflection:
+// it does exactly when uc < r, and the sample's pdf is that discrete probability (r, or 1 − r),
+// so a caller can follow both lobes, each with weight f·|cos|. -1 for every other material, and
+// where only one lobe is possible (total internal reflection, an index-matched interface).
+float DeltaReflectionProbability(const Material& m, Vec3 wo);
+
 // Whether the material's glossy lobe (if any) behaves as a delta lobe: perfectly smooth, or
 // sharp under the many-light split (Material::sharp_alpha).
 bool ActsAsDelta(const Material& m);

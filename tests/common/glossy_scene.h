@@ -25,7 +25,7 @@ inline std::string GlossyPlane(float alpha) {
 
 // The same scene with the plane a clear coat of Trowbridge-Reitz roughness `roughness` (0: a
 // smooth, delta coat) over a grey diffuse base: a mixed vertex for every camera sample that
-// reaches the plane (the coat-split tests, tests/scenes/test_coat_split.cpp).
+// reaches the plane (tests/scenes/test_split_vertices.cpp).
 inline std::string CoatedPlane(float roughness) {
   std::string s = GlossyPlane(0.02f);
   const std::string key = "Material \"conductor\"";

@@ -232,7 +232,7 @@ TEST(Farm, SplitCoatVerticesOnWorkerProcessesMatchTheDirectRenderBitForBit) {
   TempDir dir;
   const std::string scene = dir.Write("coated.pbrt", testing::CoatedPlane(0.001f));
   std::vector<std::string> args = {"--method", "lightcuts", "--resolution", "24x16", "--lights", "300",
-                                   "--seed", "6", "--spp", "2", "--param", "coat_splits=2"};
+                                   "--seed", "6", "--spp", "2", "--param", "splits=2"};
   RenderSettings s;
   s.method = "lightcuts";
   s.width = 24;
@@ -240,7 +240,7 @@ TEST(Farm, SplitCoatVerticesOnWorkerProcessesMatchTheDirectRenderBitForBit) {
   s.lights = 300;
   s.seed = 6;
   s.spp = 2;
-  s.params = {"coat_splits=2"};
+  s.params = {"splits=2"};
   const RenderOutput direct = RenderScene(scene, s);
   ASSERT_GT(direct.stats["receivers"]["points_per_sample"].get<double>(), 1.0);
 
