@@ -15,7 +15,7 @@
 #
 # Usage: scripts/report-default.sh [--method M] [--resolution WxH[,WxH...]] [--out FILE] [SCENE_NAME...]
 #   SCENE_NAME: a directory under $LIGHTFARM_SHARED/scenes, else under scenes/ here (default: every
-#   shared scene). --method renders M instead of auto (the question "would M beat path here?");
+#   shared scene and scenes/product-shot). --method renders M instead of auto (the question "would M beat path here?");
 #   --resolution renders every scene at each size instead of its Film's; --out writes the table
 #   there instead of docs/default-vs-path.md. The media comparison in docs/media-vs-path.md:
 #   scripts/report-default.sh --method adaptive-completion --resolution 128x128,256x256 \
@@ -45,6 +45,8 @@ while [ $# -gt 0 ]; do
 done
 if [ ${#scenes[@]} -eq 0 ]; then
   for d in "$shared"/scenes/*/; do scenes+=("$(basename "$d")"); done
+  # The project's own product shot (coats, glass, polished metal: docs/rendering.md, "Split vertices").
+  scenes+=(product-shot)
 fi
 invocation="scripts/report-default.sh${method_arg[*]:+ ${method_arg[*]}}"
 [ -n "${resolutions[0]}" ] && invocation+=" --resolution $(IFS=,; echo "${resolutions[*]}")"
