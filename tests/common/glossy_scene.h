@@ -10,6 +10,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "common/image/image.h"
 #include "tests/common/test_util.h"
 
 namespace lightfarm::testing {
@@ -42,6 +43,16 @@ inline std::string CoatedPlane(float roughness) {
 struct PixelRect {
   int x0, y0, w, h;
 };
+inline double Lum(const RGB& c) { return double(c.Luminance()); }
+
+// The mean luminance of an image over a pixel rectangle.
+inline double RegionMean(const Image& img, PixelRect r) {
+  double s = 0;
+  for (int y = r.y0; y < r.y0 + r.h; ++y)
+    for (int x = r.x0; x < r.x0 + r.w; ++x) s += Lum(img.at(x, y));
+  return s / double(r.w * r.h);
+}
+
 inline constexpr PixelRect kGlossyBlob{16, 24, 16, 8}, kGlossyBackdrop{0, 4, 48, 10}, kGlossyPlane{0, 16, 48, 6};
 
 }  // namespace lightfarm::testing

@@ -18,6 +18,8 @@ namespace test_sharp_lobes {
 
 using testing::GlossyPlane;
 using testing::PixelRect;
+using testing::Lum;
+using testing::RegionMean;
 using testing::TempDir;
 
 RenderOutput Render(const std::string& path, const std::string& method, int spp,
@@ -32,14 +34,6 @@ RenderOutput Render(const std::string& path, const std::string& method, int spp,
   return RenderScene(path, s);
 }
 
-double Lum(const RGB& c) { return double(c.Luminance()); }
-
-double RegionMean(const Image& img, PixelRect r) {
-  double s = 0;
-  for (int y = r.y0; y < r.y0 + r.h; ++y)
-    for (int x = r.x0; x < r.x0 + r.w; ++x) s += Lum(img.at(x, y));
-  return s / double(r.w * r.h);
-}
 
 // Backdrop pixels brighter than 3× the reference's 3×3 mean around them: specks.
 int Specks(const Image& img, const Image& truth) {

@@ -24,6 +24,8 @@ namespace test_split_vertices {
 
 using testing::CoatedPlane;
 using testing::PixelRect;
+using testing::Lum;
+using testing::RegionMean;
 using testing::TempDir;
 
 RenderOutput Render(const std::string& path, const std::string& method, int spp,
@@ -37,14 +39,6 @@ RenderOutput Render(const std::string& path, const std::string& method, int spp,
   return RenderScene(path, s);
 }
 
-double Lum(const RGB& c) { return double(c.Luminance()); }
-
-double RegionMean(const Image& img, PixelRect r) {
-  double s = 0;
-  for (int y = r.y0; y < r.y0 + r.h; ++y)
-    for (int x = r.x0; x < r.x0 + r.w; ++x) s += Lum(img.at(x, y));
-  return s / double(r.w * r.h);
-}
 
 // Pixels of r darker than 0.3× the smallest truth value in their 3×3 neighbourhood: the black
 // specks of a sample that lost the base (the truth's own edges never count).
