@@ -264,7 +264,10 @@ PathEnd TraceCameraPath(const Scene& scene, const CameraPathOptions& opt, Ray ra
       // After a split only the way that carries most of the light goes on splitting (the
       // sampling probabilities say which), so the budget is spent along the path that matters.
       float uc = rng.Uniform();
-      float p_choice = std::max(p_specular, 1e-6f);
+      // The lobe's share of SampleBSDF's choice (its pdf includes it), and the probability that
+      // this path follows the lobe: the same when it chooses, 1 when it splits.
+      const float p_lobe = mixed ? std::max(p_specular, 1e-6f) : 1.f;
+      float p_choice = p_lobe;
       if (split && mixed) {
         ++end.split_vertices;
         make_receiver(b.beta);
@@ -309,11 +312,10 @@ PathEnd TraceCameraPath(const Scene& scene, const CameraPathOptions& opt, Ray ra
       // makes SampleBSDF choose the delta lobe, and its pdf includes p_specular.
       std::optional<BSDFSample> bs = SampleBSDF(m, wo_local, uc, {rng.Uniform(), rng.Uniform()}, TransportMode::kRadiance);
       if (!bs || !(bs->pdf > 0) || !bs->IsSpecular()) break;
-      const float p_lobe = mixed ? std::max(p_specular, 1e-6f) : 1.f;
       if (lights && HasSharpLobe(m)) {
         // A sharp lobe is not a delta: emitters it reflects get an emitter sample too (MIS).
-        end.emitted += b.beta * SharpLobeDirectLight(scene, *lights, hit, m, frame, wo_local, p_lobe,
-                                                     mixed ? p_choice : 1.f, b.medium, sharp_samples, rng);
+        end.emitted += b.beta * SharpLobeDirectLight(scene, *lights, hit, m, frame, wo_local, p_lobe, p_choice,
+                                                     b.medium, sharp_samples, rng);
         b.after_sharp = true;
         b.sharp_pdf = bs->pdf / p_lobe;
         b.sharp_p = hit.p;
