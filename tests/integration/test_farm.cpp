@@ -126,6 +126,18 @@ FarmRender SubmitToTwoWorkers(TempDir& dir, const std::string& scene, const std:
   return {ReadImage(dir.Path(name + ".exr")), nlohmann::json::parse(Slurp(dir.Path(name + ".json")))};
 }
 
+// The same, with the submit's options taken from the settings the direct render used (method,
+// size, spp, lights, seed, params), so the two runs cannot drift apart.
+FarmRender SubmitToTwoWorkers(TempDir& dir, const std::string& scene, const std::string& name,
+                              const RenderSettings& s) {
+  std::vector<std::string> args = {"--method", s.method, "--lights", std::to_string(s.lights), "--seed",
+                                   std::to_string(s.seed)};
+  if (s.width > 0) args.insert(args.end(), {"--resolution", std::to_string(s.width) + "x" + std::to_string(s.height)});
+  if (s.spp > 0) args.insert(args.end(), {"--spp", std::to_string(s.spp)});
+  for (const std::string& p : s.params) args.insert(args.end(), {"--param", p});
+  return SubmitToTwoWorkers(dir, scene, name, args);
+}
+
 // A media scene through the whole pipeline on real processes: the cloud (NanoVDB density, VRLs,
 // eye segments partitioned by METIS on the coordinator) gathered by adaptive-completion on two
 // worker processes gives the direct render's bits, and its stats show the media work.
@@ -186,8 +198,6 @@ TEST(Farm, CausticsOnWorkerProcessesMatchTheDirectRenderBitForBit) {
 TEST(Farm, SharpLobesOnWorkerProcessesMatchTheDirectRenderBitForBit) {
   TempDir dir;
   const std::string scene = dir.Write("glossy.pbrt", GlossyPlane(0.02f));
-  const std::vector<std::string> args = {"--method", "lightcuts", "--resolution", "24x16", "--lights", "300",
-                                         "--seed", "4", "--param", "caustic_photons=20000"};
   RenderSettings s;
   s.method = "lightcuts";
   s.width = 24;
@@ -198,7 +208,7 @@ TEST(Farm, SharpLobesOnWorkerProcessesMatchTheDirectRenderBitForBit) {
   const RenderOutput direct = RenderScene(scene, s);
   ASSERT_EQ(direct.stats["sharp"]["materials"], 1);
 
-  const FarmRender farm = SubmitToTwoWorkers(dir, scene, "glossy", args);
+  const FarmRender farm = SubmitToTwoWorkers(dir, scene, "glossy", s);
   EXPECT_TRUE(SameBits(farm.image, direct.image));
   EXPECT_EQ(farm.stats["sharp"], direct.stats["sharp"]);
 }
@@ -208,20 +218,17 @@ TEST(Farm, SharpLobesOnWorkerProcessesMatchTheDirectRenderBitForBit) {
 TEST(Farm, ElementBoundOnWorkerProcessesMatchesTheDirectRenderBitForBit) {
   TempDir dir;
   const std::string scene = dir.Write("glossy.pbrt", GlossyPlane(0.02f));
-  const std::vector<std::string> params = {"sharp_roughness=0", "bsdf_clamp=0.1", "caustic_photons=20000"};
-  std::vector<std::string> args = {"--method", "mrcs", "--resolution", "24x16", "--lights", "300", "--seed", "4"};
-  for (const std::string& p : params) args.insert(args.end(), {"--param", p});
   RenderSettings s;
   s.method = "mrcs";
   s.width = 24;
   s.height = 16;
   s.lights = 300;
   s.seed = 4;
-  s.params = params;
+  s.params = {"sharp_roughness=0", "bsdf_clamp=0.1", "caustic_photons=20000"};
   const RenderOutput direct = RenderScene(scene, s);
   ASSERT_GT(direct.stats["clamp"]["bound_elements"].get<double>(), 0);
 
-  const FarmRender farm = SubmitToTwoWorkers(dir, scene, "bound", args);
+  const FarmRender farm = SubmitToTwoWorkers(dir, scene, "bound", s);
   EXPECT_TRUE(SameBits(farm.image, direct.image));
   EXPECT_EQ(farm.stats["clamp"], direct.stats["clamp"]);
 }
@@ -231,8 +238,6 @@ TEST(Farm, ElementBoundOnWorkerProcessesMatchesTheDirectRenderBitForBit) {
 TEST(Farm, SplitCoatVerticesOnWorkerProcessesMatchTheDirectRenderBitForBit) {
   TempDir dir;
   const std::string scene = dir.Write("coated.pbrt", testing::CoatedPlane(0.001f));
-  std::vector<std::string> args = {"--method", "lightcuts", "--resolution", "24x16", "--lights", "300",
-                                   "--seed", "6", "--spp", "2", "--param", "splits=2"};
   RenderSettings s;
   s.method = "lightcuts";
   s.width = 24;
@@ -244,7 +249,7 @@ TEST(Farm, SplitCoatVerticesOnWorkerProcessesMatchTheDirectRenderBitForBit) {
   const RenderOutput direct = RenderScene(scene, s);
   ASSERT_GT(direct.stats["receivers"]["points_per_sample"].get<double>(), 1.0);
 
-  const FarmRender farm = SubmitToTwoWorkers(dir, scene, "coated", args);
+  const FarmRender farm = SubmitToTwoWorkers(dir, scene, "coated", s);
   EXPECT_TRUE(SameBits(farm.image, direct.image));
   EXPECT_EQ(farm.stats["receivers"], direct.stats["receivers"]);
 }
