@@ -69,7 +69,7 @@ TEST(SplitVertices, TheDefaultHasNoBlackPixelAndMatchesThePathTracer) {
     const RenderOutput split = Render(path, "auto", 1);
     const RenderOutput choice = Render(path, "auto", 1, {"splits=0"});
     const int split_specks = DarkSpecks(split.image, truth), choice_specks = DarkSpecks(choice.image, truth);
-    std::printf("roughness %g: dark pixels on the plane %d split, %d chosen (of %d)\n", roughness, split_specks,
+    std::printf("roughness %g: dark pixels on the plane %d split, %d chosen (of %d)\n", static_cast<double>(roughness), split_specks,
                 choice_specks, testing::kGlossyPlane.w * testing::kGlossyPlane.h);
     EXPECT_EQ(split_specks, 0) << "roughness " << roughness;
     EXPECT_GT(choice_specks, 5) << "roughness " << roughness;
