@@ -475,6 +475,7 @@ nlohmann::json MakeStats(const Plan& plan, const RenderSettings& settings,
                 {"distance", plan.matrix->clamp_distance()},
                 {"energy_lost_fraction", denom > 0 ? counters.clamp_lost / denom : 0.0},
                 {"compensation_samples", plan.matrix_options.compensation_samples},
+                {"media_compensation", plan.matrix->compensates_media()},
                 {"compensated_fraction", denom > 0 ? counters.clamp_compensated / denom : 0.0},
                 {"energy_lost_after_compensation",
                  denom > 0 ? (counters.clamp_lost - (plan.matrix->compensates() ? counters.clamp_compensated : 0.0)) / denom

@@ -14,6 +14,45 @@ namespace {
 
 constexpr int kMaxPassthrough = 64;  // interface crossings without scattering before giving up
 
+// The first vertex of a windowed path (FirstVertexWeight::window) in `med` along `ray`, whose
+// next surface (if `found`) is at ray.tmax. Tentative collisions at the medium's majorant σ̄
+// choose between the medium and the surface as delta tracking does (the medium with probability
+// P = 1 − e^{−σ̄·tmax}; always when no surface is in the window), but a medium vertex is drawn
+// from the exponential truncated to the window and weighted by σ_s(y)·Tr(o, y) / (P·pdf), the
+// surface by Tr(o, surface) / (1 − P): every sample lands in the window, and in a homogeneous
+// medium the weights are the albedo and 1, as delta tracking's.
+FreePathSample ForcedFreePath(const Medium& med, const MediumRay& ray, bool found, Rng& rng) {
+  FreePathSample fp;
+  fp.t = ray.tmax;
+  const float majorant = med.sigma_t().Max() * med.MaxDensity();
+  const float tau = majorant * ray.tmax;
+  const float p_collide = -std::expm1(-tau);
+  const float p_medium = found ? p_collide : 1.f;
+  if (!(p_medium > 0) || !(ray.tmax > 0)) {  // nothing scatters here (an empty medium)
+    fp.weight = found ? med.Transmittance(ray, rng) : RGB(0.f);
+    return fp;
+  }
+  if (rng.Uniform() < p_medium) {
+    fp.scattered = true;
+    const float u = rng.Uniform();
+    float pdf = 1.f / ray.tmax;  // the truncated exponential's limit as σ̄·tmax → 0
+    fp.t = u * ray.tmax;
+    if (tau > 1e-4f) {
+      fp.t = std::min(-std::log1p(-u * p_collide) / majorant, ray.tmax);
+      pdf = majorant * std::exp(-majorant * fp.t) / p_collide;
+    }
+    const RGB sigma_s = med.sigma_s() * med.Density(ray.o + ray.d * fp.t);
+    if (sigma_s.IsBlack() || !(pdf > 0)) {
+      fp.weight = RGB(0.f);
+      return fp;
+    }
+    fp.weight = sigma_s * med.Transmittance({ray.o, ray.d, fp.t}, rng) / (p_medium * pdf);
+  } else {
+    fp.weight = med.Transmittance(ray, rng) / (1.f - p_medium);
+  }
+  return fp;
+}
+
 }  // namespace
 
 PathTracer::PathTracer(const Scene& scene, const PathTracerOptions& options)
@@ -85,17 +124,27 @@ RGB PathTracer::Li(Ray ray, int medium, int max_depth, Rng& rng, PathCounters* c
   Vec3 prev_p = ray.o;
   float prev_pdf = 0;
   const bool use_lights = options_.strategy != PathStrategy::kBSDF && !lights_.empty();
+  // A windowed first vertex (FirstVertexWeight::window): the distance travelled towards it so far
+  // (interfaces crossed) and its weight at distance d.
+  const float window = first ? first->window : 0.f;
+  float travelled = 0;
+  const auto window_weight = [&](float d) { return std::max(0.f, 1.f - Sqr(d / window)); };
   for (;;) {
+    const bool windowed = window > 0 && depth == 0;
+    if (windowed) ray.tmax = window - travelled;
     SurfaceHit hit;
     if (record_closest_) record_closest_->push_back(ray);
     const bool found = scene_.Intersect(ray, &hit);
     bool scattered = false;
     if (medium >= 0) {
       const Medium& med = scene_.media()[medium];
-      const FreePathSample fp = med.SampleFreePath({ray.o, ray.d, found ? hit.t : kInfinity}, rng);
+      const FreePathSample fp =
+          windowed ? ForcedFreePath(med, {ray.o, ray.d, found ? hit.t : ray.tmax}, found, rng)
+                   : med.SampleFreePath({ray.o, ray.d, found ? hit.t : kInfinity}, rng);
       beta *= fp.weight;
       if (beta.IsBlack() || !beta.IsFinite()) break;
       if (fp.scattered) {
+        if (windowed) beta *= window_weight(travelled + fp.t);
         if (first && depth == 0) beta *= first->other;
         if (depth++ >= max_depth) break;
         ++counters->vertices;
@@ -114,6 +163,7 @@ RGB PathTracer::Li(Ray ray, int medium, int max_depth, Rng& rng, PathCounters* c
     }
     if (!scattered) {
       // The ray reached its surface (or escaped) without scattering in a medium.
+      if (!found && windowed) break;  // nothing within the window
       if (!found) {
         ++counters->escaped;
         for (uint32_t i = 0; i < scene_.infinite_emitters().size(); ++i) {
@@ -128,24 +178,27 @@ RGB PathTracer::Li(Ray ray, int medium, int max_depth, Rng& rng, PathCounters* c
       const Shape& shape = scene_.shapes()[hit.shape];
       // The first vertex of a weighted path (FirstVertexWeight): the next surface that scatters.
       const FirstVertexWeight* at_first = depth == 0 ? first : nullptr;
+      const Material& m = scene_.materials()[shape.material];
+      const uint32_t flags = MaterialFlags(m);
+      const float in_window = windowed ? window_weight(travelled + hit.t) : 1.f;
       if (shape.area_emitter >= 0) {
         const RGB Le = scene_.EmittedRadiance(hit, wo);
         if (!Le.IsBlack()) {
           float w = specular ? 1.f
                              : HitWeight(prev_pdf, lights_.PdfArea(uint32_t(shape.area_emitter), prev_p, hit));
-          if (at_first) w *= at_first->emission;
+          if (at_first) w *= at_first->emission * in_window;
           L += beta * Le * w;
         }
       }
-      const Material& m = scene_.materials()[shape.material];
-      const uint32_t flags = MaterialFlags(m);
       if (flags == 0) {  // a surface that only bounds a medium: cross it, no vertex
         if (++passthrough > kMaxPassthrough) break;
+        if (windowed) travelled += hit.t;
         medium = scene_.MediumAfter(hit, ray.d, medium);
         ray.o = OffsetRayOrigin(hit.p, hit.ng, ray.d);
         ray.tmax = kInfinity;
         continue;
       }
+      beta *= in_window;
       if (depth++ >= max_depth) break;
       ++counters->vertices;
       passthrough = 0;

@@ -59,9 +59,17 @@ struct PathCounters {
 // weighted by `emission`, light arriving there along a non-delta direction wi (local shading
 // frame, wo towards the path's origin) by arrival(wo, wi), light leaving it by a delta (or sharp)
 // lobe by `specular`, and a first vertex in a medium by `other`.
+//
+// With a `window` c > 0 the first vertex is forced within distance c of the ray's origin and
+// everything it gathers is further weighted by (1 − d²/c²), d its distance from the origin: the
+// share of a light path that the geometry clamp removed from an eye segment's elements
+// (clamp_compensation.cpp). Inside a medium the vertex is a scattering point, drawn from the
+// majorant's exponential truncated to the stretch before the next surface (or c), or that
+// surface, chosen as delta tracking would choose; the path then goes on as usual.
 struct FirstVertexWeight {
   float emission = 1, other = 1, specular = 1;
   std::function<float(Vec3 wo, Vec3 wi)> arrival;
+  float window = 0;
 };
 
 class PathTracer {

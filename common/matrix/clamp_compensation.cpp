@@ -21,18 +21,43 @@
 // material can reach the bound (a Lambertian scene) only the surfaces within c are traced: the
 // directions that find nothing there cost one short ray. A sample whose y cannot reach the bound
 // (a Lambertian y whose best case stays below it) and lies beyond c costs one ray and no path.
+// A direction into a medium finds y as an eye segment's samples do (below): a scattering point
+// or a surface within c, the clamp's share alone (the element bound's share of a glossy y seen
+// through a medium is not traced).
 //
-// Rows in a medium are skipped: there the clamp also bounds medium VPLs and VRLs, whose residual
-// is not this surface integral.
+// Eye-segment rows. An element of a segment row (segment_element.cpp, vrl_element.cpp) integrates
+// over points x = o + t·d of the segment and points y of a virtual light (a VPL, a point on a
+// VRL) with G = 1/max(d², c²), d = |x − y|. Written over the direction ω from x and the distance d
+// to y, the true kernel is 1/d² times the volume (or area) measure d²·dω·dd, so the clamp keeps
+// min(1, d²/c²) of every path x ← y and the residual is
+//   ΔL(seg) = β ∫_0^ℓ σ_s(x) T_seg(0→t) ∫_{S²} p(ω) ∫_0^c (1 − d²/c²) T(x, y) L_y(y → x) dd dω dt,
+// L_y being what y scatters towards x: σ_s(y)·L_s at a medium point (everything it in-scatters:
+// every VRL and medium VPL carries light arriving there), a surface's reflected light at an opaque
+// y (not what leaves it by a delta lobe, for the caustic photons carry that), and its emission
+// only where area VPLs are segment columns (otherwise the camera side's emitter samples have the
+// emitter → x light unclamped). One estimate per sample: t from the segment's track (σ_s·T_seg),
+// ω from the phase function, then the path tracer with a windowed first vertex
+// (FirstVertexWeight::window = c), which forces y within c and weights it by 1 − d²/c².
 #include "common/matrix/lighting_matrix.h"
 
 #include <embree3/rtcore.h>
 
 #include <algorithm>
 
+#include "common/scene/phase.h"
 #include "common/util/sampling.h"
 
 namespace lightfarm {
+
+namespace {
+
+// An eye segment takes this many times a surface row's samples: its residual's integrand,
+// σ_s(y)·L_s(y) within c of the segment, changes voxel by voxel in a grid medium, and a segment's
+// samples cost little next to its row of VRL elements (docs/methods/media-elements.md, "The clamp
+// in media").
+constexpr int kSegmentCompensationFactor = 16;
+
+}  // namespace
 
 bool LightingMatrix::BoundWeight(const RowData& r, const Material& m, const BSDFSample& bs,
                                  const SurfaceHit& hit, float d2, float w_clamp,
@@ -93,9 +118,47 @@ RGB LightingMatrix::BoundEmitterSample(const RowData& r, const Material& m, Rng&
   return r.throughput * fx * ls->L * (std::abs(wi_local.z) * share * mis / ls->pdf);
 }
 
+RGBAccum LightingMatrix::SegmentCompensation(uint32_t row, MatrixCounters* counters) const {
+  RGBAccum sum;
+  const uint32_t si = row - uint32_t(rows_.size());
+  if (si >= receivers_.segments.size()) return sum;
+  const EyeSegment& seg = receivers_.segments[si];
+  const int budget = max_depth_ - int(seg.depth);
+  if (budget <= 0 || seg.medium < 0 || !(seg.length > 0)) return sum;
+  MediumTrack scratch;
+  const MediumTrack& track = SegmentTrack(si, &scratch);
+  if (track.empty()) return sum;
+  const float g = scene_.media()[seg.medium].g();
+  FirstVertexWeight window = medium_window_;
+  window.emission = segment_emitter_columns_ ? 1.f : 0.f;
+  PathCounters pc;
+  const int n = compensation_samples_ * kSegmentCompensationFactor;
+  const float inv_n = 1.f / float(n);
+  for (int s = 0; s < n; ++s) {
+    Rng rng(HashSeed({seed_, uint64_t(RngStream::kCompensation), row, uint64_t(s)}));
+    float pdf_t = 0, pdf_w = 0;
+    size_t where = 0;
+    const float t = track.Sample((float(s) + rng.Uniform()) * inv_n, &pdf_t, &where);
+    if (!(pdf_t > 0)) continue;
+    const MediumTrack::Point x = track.At(t, where);
+    if (x.sigma_s.IsBlack()) continue;
+    // The camera path arrives travelling along d; the light leaves x towards the camera (−d)
+    // after arriving from y = x + d_y·ω, the direction the phase function is sampled in.
+    const Vec3 w = SampleHenyeyGreenstein(seg.d, g, rng.Uniform(), rng.Uniform(), &pdf_w);
+    ++counters->compensation_paths;
+    const RGB Li = compensation_tracer_->Li({seg.o + seg.d * t, w, kInfinity}, seg.medium, budget, rng, &pc, &window);
+    const RGB c = seg.throughput * x.sigma_s * x.tr * Li * (inv_n / pdf_t);
+    if (c.IsFinite()) sum.Add(c);
+  }
+  counters->clamp_compensated += 0.2126 * sum.r + 0.7152 * sum.g + 0.0722 * sum.b;
+  counters->shadow_rays += pc.shadow_rays;
+  return sum;
+}
+
 RGBAccum LightingMatrix::ClampCompensation(uint32_t row, MatrixCounters* counters) const {
   RGBAccum sum;
-  if (!compensates() || row >= rows_.size()) return sum;
+  if (!compensates()) return sum;
+  if (row >= rows_.size()) return media_compensation_ ? SegmentCompensation(row, counters) : sum;
   const RowData& r = rows_[row];
   const Material& m = scene_.materials()[r.material];
   PathCounters pc;
@@ -114,8 +177,18 @@ RGBAccum LightingMatrix::ClampCompensation(uint32_t row, MatrixCounters* counter
     if (!bs || bs->IsSpecular() || !(bs->pdf > 0) || bs->f.IsBlack()) continue;
     const Vec3 wi = r.frame.FromLocal(bs->wi);
     const int medium = Dot(wi, r.ng) > 0 ? r.medium_out : r.medium_in;
-    if (medium >= 0) continue;
     const Vec3 o = OffsetRayOrigin(r.p, r.ng, wi);
+    if (medium >= 0 && !media_compensation_) continue;
+    if (medium >= 0) {
+      // Into a medium: y is a scattering point or a surface within c (the windowed first vertex,
+      // as for eye segments); every clamped light there, an area VPL's emission included.
+      ++counters->compensation_paths;
+      const RGB Li = compensation_tracer_->Li({o, wi, kInfinity}, medium, r.light_depth_budget, rng, &pc,
+                                              &medium_window_);
+      const RGB c = r.throughput * bs->f * Li * (std::abs(bs->wi.z) / bs->pdf * inv_n);
+        if (c.IsFinite()) sum.Add(c);
+      continue;
+    }
     // The offset grows with the coordinates' magnitude (far from the origin it can exceed c):
     // search c past the receiver itself, not past the offset origin.
     SurfaceHit hit;

@@ -186,6 +186,9 @@ void ReadMatrixParams(const OptionMap& params, uint64_t seed, MatrixOptions* opt
   options->segment_emitter_columns = options->media_direct_samples == 0;
   // Path-traced compensation of the clamp, samples per surface receiver (clamp_compensation.cpp).
   options->compensation_samples = int(params.GetInt("clamp_compensation", 4, 0, 64));
+  // ... and in media: eye segments and surface samples that enter a medium (the scene decides
+  // the default: the matrix's constructor).
+  options->media_compensation = params.Has("media_compensation") ? int(params.GetInt("media_compensation", 0, 0, 1)) : -1;
   // The element bound's scale (MatrixOptions::bsdf_clamp).
   options->bsdf_clamp = float(params.GetDouble("bsdf_clamp", 1.0, 0.0, 1e6));
   options->seed = seed;
@@ -218,6 +221,11 @@ LightingMatrix::LightingMatrix(const Scene& scene, const ReceiverSet& receivers,
   segment_emitter_columns_ = options.segment_emitter_columns;
   max_depth_ = scene.hints().max_depth;
   compensation_samples_ = options.compensation_samples;
+  // In media by default only where no emitter is finite: beside a point or area light L_s grows
+  // as 1/r² and the window's samples have unbounded variance (docs/rendering.md, "The clamp").
+  media_compensation_ = options.media_compensation >= 0
+                            ? options.media_compensation != 0
+                            : scene.area_emitters().empty() && scene.point_emitters().empty();
   seed_ = options.seed;
   if (options.bsdf_clamp > 0 && clamp_distance2_ > 0) {
     bound_area_ = options.bsdf_clamp * kInvPi / clamp_distance2_;
@@ -239,6 +247,9 @@ LightingMatrix::LightingMatrix(const Scene& scene, const ReceiverSet& receivers,
     PathTracerOptions pt;
     pt.max_depth = scene.hints().max_depth;
     compensation_tracer_ = std::make_unique<PathTracer>(scene, pt);
+    medium_window_.window = clamp_distance_;
+    medium_window_.specular = 0.f;
+    medium_window_.arrival = [](Vec3, Vec3) { return 1.f; };
     if (bound_binds_ && !scene.has_media()) compensation_emitters_ = std::make_unique<EmitterSampler>(scene);
   }
   caustic_photons_ = options.caustic_photons >= 0 ? options.caustic_photons

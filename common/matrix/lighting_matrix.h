@@ -57,6 +57,11 @@ struct MatrixOptions {
   // Path-traced compensation of the clamp (clamp_compensation.cpp): BSDF samples per surface
   // receiver that estimate the light the clamp removed; 0 turns it off (the --param default is 4).
   int compensation_samples = 0;
+  // Whether the compensation also covers eye segments and surface samples that enter a medium
+  // (--param media_compensation=0|1): unbiased, but its variance is unbounded where a segment
+  // passes a finite emitter (docs/rendering.md, "The clamp"); -1: only when the scene has no
+  // point or area light (distant and environment lights alone).
+  int media_compensation = -1;
   // The job seed: the compensation and the caustic photons are part of the light transport.
   uint64_t seed = 0;
   // Caustic photons (caustic_photons.h) gathered on every row: the number stored, -1 for the
@@ -97,7 +102,7 @@ struct MatrixCounters {
   uint64_t bound_elements = 0;  // visible elements the element bound scaled down
   uint64_t transmittance_evals = 0;  // visible connections attenuated through media (walks)
   double clamp_compensated = 0;      // luminance the clamp compensation added back
-  uint64_t compensation_paths = 0;   // compensation samples traced (a surface within the clamp, or a bound share)
+  uint64_t compensation_paths = 0;   // compensation samples traced (a surface within the clamp, a bound share, a medium)
   double caustic_gathered = 0;       // luminance the caustic photons added
   uint64_t caustic_photons_used = 0; // photons that contributed to a row's estimate
   void Add(const MatrixCounters& o) {
@@ -152,12 +157,14 @@ class LightingMatrix {
   void Column(uint32_t col, std::span<const uint32_t> rows, std::span<RGB> out,
               MatrixCounters* counters) const;
 
-  // The light the clamp and the element bound removed from a surface row, estimated by path
-  // tracing (Kollig & Keller 2004's residual, traced as in Engelhardt et al. 2012;
-  // clamp_compensation.cpp); zero for eye-segment rows and when compensation is off.
-  // Deterministic in (job seed, row).
+  // The light the clamp and the element bound removed from a row, estimated by path tracing
+  // (Kollig & Keller 2004's residual, traced as in Engelhardt et al. 2012;
+  // clamp_compensation.cpp); zero when compensation is off. Deterministic in (job seed, row).
   bool compensates() const { return compensation_samples_ > 0 && clamp_distance_ > 0; }
+  bool compensates_media() const { return compensates() && media_compensation_; }
   RGBAccum ClampCompensation(uint32_t row, MatrixCounters* counters) const;
+  // The eye-segment rows' share of it (the residual of every clamped virtual light near the segment).
+  RGBAccum SegmentCompensation(uint32_t row, MatrixCounters* counters) const;
 
   // Light arriving at the end of caustic chains (L S+ D, L S+ M) that no column carries,
   // gathered from caustic photons on surface rows and eye-segment rows (caustic_gather.cpp).
@@ -275,6 +282,10 @@ class LightingMatrix {
   };
   DiffuseLightArrays light_arrays_;
   float clamp_distance_ = 0, clamp_distance2_ = 0;
+  // The compensation's first vertex in a medium: forced within the clamp distance, weighted by
+  // the clamp's share (clamp_compensation.cpp).
+  FirstVertexWeight medium_window_;
+  bool media_compensation_ = false;
   // The element bound's limits (MatrixOptions::bsdf_clamp; 0: off) and whether any material of
   // the scene can reach them (else the compensation traces only the geometry clamp's residual).
   float bound_area_ = 0, bound_surface_ = 0;
