@@ -2,12 +2,12 @@
 
 #include <cstdio>
 #include <filesystem>
-#include <fstream>
 
 #include "common/farm/program.h"
 #include "common/farm/proto_convert.h"
 #include "common/image/image_io.h"
 #include "common/util/error.h"
+#include "common/util/file.h"
 
 namespace lightfarm::cli {
 
@@ -31,30 +31,16 @@ std::unique_ptr<RenderClient> ConnectToCoordinator(const ServerArgs& a) {
   return std::make_unique<RenderClient>(MakeChannel(o), ReadTokenFile(a.token_file), a.timeout);
 }
 
-namespace {
-
-void WriteAtomically(const std::string& path, const std::string& data) {
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream f(tmp, std::ios::binary);
-    f.write(data.data(), std::streamsize(data.size()));
-    if (!f) throw std::runtime_error("cannot write " + path);
-  }
-  fs::rename(tmp, path);
-}
-
-}  // namespace
-
 void WriteFetchedResult(const std::string& exr_path, const std::string& exr_bytes,
                         const std::string& stats_json, const std::string& stats_path) {
   if (exr_path.size() < 5 || exr_path.substr(exr_path.size() - 4) != ".exr")
     throw OptionError("--out must name an .exr file, got \"" + exr_path + "\"");
   fs::path out(exr_path);
   if (out.has_parent_path()) fs::create_directories(out.parent_path());
-  WriteAtomically(exr_path, exr_bytes);
+  WriteFileAtomically(exr_path, exr_bytes);
   const std::string stem = exr_path.substr(0, exr_path.size() - 4);
   WritePNG(stem + ".png", ReadImage(exr_path));
-  WriteAtomically(stats_path.empty() ? stem + ".json" : stats_path, stats_json + "\n");
+  WriteFileAtomically(stats_path.empty() ? stem + ".json" : stats_path, stats_json + "\n");
 }
 
 std::string ProgressPhase(const v1::JobStatus& st) {

@@ -5,7 +5,6 @@
 
 #include <cstdio>
 #include <filesystem>
-#include <fstream>
 #include <iostream>
 
 #include "cli/commands.h"
@@ -15,6 +14,7 @@
 #include "cli/target_error.h"
 #include "common/image/image_io.h"
 #include "common/util/error.h"
+#include "common/util/file.h"
 #include "cli/embedded_farm.h"
 
 namespace lightfarm::cli {
@@ -31,23 +31,6 @@ struct RenderArgs {
   int workers = 1;
   bool quiet = false;
 };
-
-// Writes via a temporary file and rename, so a failed run leaves no partial file behind.
-void WriteTextAtomically(const std::string& path, const std::string& text) {
-  std::string tmp = path + ".tmp";
-  {
-    std::ofstream f(tmp);
-    if (!f) throw std::runtime_error("cannot write " + path);
-    f << text;
-    f.close();
-    if (!f) {
-      std::error_code ec;
-      std::filesystem::remove(tmp, ec);
-      throw std::runtime_error("cannot write " + path);
-    }
-  }
-  std::filesystem::rename(tmp, path);
-}
 
 void RunRender(const RenderArgs& a) {
   RenderSettings s = ToRenderSettings(a.render);
@@ -80,7 +63,7 @@ void RunRender(const RenderArgs& a) {
   try {
     WriteEXR(a.out, out.image);
     WritePNG(png, out.image);
-    if (!a.stats.empty()) WriteTextAtomically(a.stats, out.stats.dump(2) + "\n");
+    if (!a.stats.empty()) WriteFileAtomically(a.stats, out.stats.dump(2) + "\n");
   } catch (...) {
     std::error_code ec;
     for (const std::string& written : {a.out, png}) std::filesystem::remove(written, ec);

@@ -4,7 +4,6 @@
 #include <unistd.h>
 
 #include <filesystem>
-#include <fstream>
 #include <iostream>
 
 #include "cli/commands.h"
@@ -12,6 +11,7 @@
 #include "cli/progress.h"
 #include "common/farm/program.h"
 #include "common/farm/proto_convert.h"
+#include "common/util/file.h"
 
 namespace lightfarm::cli {
 
@@ -36,10 +36,8 @@ void AddWatchCommand(CLI::App& app) {
     std::string last;
     v1::JobStatus st = client->Watch(args->job, [&](const v1::JobStatus& s) {
       if (!args->preview.empty() && !s.preview_png().empty()) {
-        // Replace the file atomically so that an image viewer never reads half of it.
-        const std::string tmp = args->preview + ".part";
-        std::ofstream(tmp, std::ios::binary) << s.preview_png();
-        std::filesystem::rename(tmp, args->preview);
+        // Replaced atomically: an image viewer never reads half of it.
+        WriteFileAtomically(args->preview, s.preview_png());
       }
       if (tty) {
         if (s.state() == v1::JOB_STATE_RUNNING) bar.Update(ProgressPhase(s), s.tasks_done(), s.tasks_total());

@@ -354,9 +354,7 @@ void HttpServer::Routes() {
       const fs::path png = dir / (fs::path(result.exr_path).filename().string() + ".png");
       if (!fs::exists(png)) {
         fs::create_directories(dir);
-        const fs::path tmp = png.string() + ".tmp" + std::to_string(std::hash<std::thread::id>{}(std::this_thread::get_id()));
-        WritePNG(tmp.string(), ReadImage(result.exr_path));
-        fs::rename(tmp, png);
+        WritePNG(png.string(), ReadImage(result.exr_path));  // atomic: concurrent requests each rename a whole file
       }
       res.set_content(ReadFile(png.string()), "image/png");
     });

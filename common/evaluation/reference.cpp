@@ -13,6 +13,7 @@
 #include <unordered_map>
 
 #include "common/image/film.h"
+#include "common/util/file.h"
 #include "common/util/rng.h"
 
 namespace lightfarm {
@@ -93,14 +94,11 @@ void SaveReference(const ReferenceRequest& r, const BenchReference& ref) {
   // Raw floats, not EXR: a cached reference must equal the computed one bit for bit.
   const std::string bin = CachePath(r, ref.key, ".bin");
   {
-    std::ofstream out(bin + ".tmp", std::ios::binary);
-    int32_t wh[2] = {ref.image.width, ref.image.height};
-    out.write(reinterpret_cast<const char*>(wh), sizeof wh);
-    out.write(reinterpret_cast<const char*>(ref.image.pixels.data()),
-              std::streamsize(ref.image.pixels.size() * sizeof(RGB)));
-    if (!out) throw std::runtime_error("cannot write " + bin);
+    const int32_t wh[2] = {ref.image.width, ref.image.height};
+    std::string bytes(reinterpret_cast<const char*>(wh), sizeof wh);
+    bytes.append(reinterpret_cast<const char*>(ref.image.pixels.data()), ref.image.pixels.size() * sizeof(RGB));
+    WriteFileAtomically(bin, bytes);
   }
-  fs::rename(bin + ".tmp", bin);
   nlohmann::json meta;
   meta["scene"] = fs::absolute(r.scene).string();
   meta["lights_requested"] = r.settings.lights;
@@ -115,8 +113,7 @@ void SaveReference(const ReferenceRequest& r, const BenchReference& ref) {
   meta["brute_elements"] = ref.brute_elements;
   meta["extrapolated"] = ref.extrapolated;
   const std::string json = CachePath(r, ref.key, ".json");
-  std::ofstream(json + ".tmp") << meta.dump(1) << "\n";
-  fs::rename(json + ".tmp", json);
+  WriteFileAtomically(json, meta.dump(1) + "\n");
 }
 
 // Brute force on the receivers of the chosen pixels only; the film adds exactly the samples

@@ -13,6 +13,7 @@
 #include "common/image/image_io.h"
 #include "common/image/metrics.h"
 #include "common/util/error.h"
+#include "common/util/file.h"
 #include "common/util/rng.h"
 
 namespace lightfarm {
@@ -188,9 +189,7 @@ Truth GetTruth(const TruthRequest& request) {
                         {"spp", t.spp},              {"seconds", t.seconds},
                         {"noise_rel_l1", t.noise_rel_l1}, {"noise_rel_l2", t.noise_rel_l2},
                         {"target_noise", r.noise}};
-    const fs::path tmp = dir / "truth.json.tmp";
-    std::ofstream(tmp) << j.dump(2) << "\n";
-    fs::rename(tmp, dir / "truth.json");
+    WriteFileAtomically(dir / "truth.json", j.dump(2) + "\n");
   }
   return t;
 }

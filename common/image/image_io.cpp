@@ -1,9 +1,7 @@
 #include "common/image/image_io.h"
 
 #include <dlfcn.h>
-#include <unistd.h>
 
-#include <atomic>
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
@@ -13,6 +11,7 @@
 #include <vector>
 
 #include "common/image/image_io_backend.h"
+#include "common/util/file.h"
 
 namespace lightfarm {
 namespace {
@@ -88,35 +87,13 @@ void CheckWritable(const std::string& path, const Image& image) {
   }
 }
 
-// A temporary name beside `path` (same directory, so rename() is atomic on POSIX), unique per
-// process and call: ".NAME.tmp-PID-N".
-fs::path TemporaryPathBeside(const fs::path& path) {
-  static std::atomic<uint64_t> counter{0};
-  fs::path name = "." + path.filename().string() + ".tmp-" + std::to_string(::getpid()) + "-" +
-                  std::to_string(counter.fetch_add(1));
-  return path.parent_path() / name;
-}
-
-// Writes the pixels to a temporary file and renames it over `path`; on any failure the
-// temporary file is removed and `path` is untouched.
+// Writes the pixels to a temporary file and renames it over `path` (ReplaceFileAtomically).
 void WriteAtomically(const std::string& path, const char* format, const Image& image,
                      bool float_pixels, const void* pixels) {
   const ImageIoBackend& backend = Backend();
-  const fs::path target(path);
-  const fs::path temporary = TemporaryPathBeside(target);
-  auto fail = [&](const std::string& why) {
-    std::error_code ignored;
-    fs::remove(temporary, ignored);
-    throw std::runtime_error("cannot write \"" + path + "\": " + why);
-  };
-  try {
+  ReplaceFileAtomically(path, [&](const fs::path& temporary) {
     backend.write(temporary.string(), format, image.width, image.height, float_pixels, pixels);
-  } catch (const std::exception& e) {
-    fail(e.what());
-  }
-  std::error_code ec;
-  fs::rename(temporary, target, ec);
-  if (ec) fail("rename from temporary file failed: " + ec.message());
+  });
 }
 
 }  // namespace

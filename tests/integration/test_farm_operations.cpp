@@ -104,7 +104,8 @@ TEST(FarmOperations, WatchPreviewsShowMoreFinishedTilesAsTheJobRuns) {
   EXPECT_EQ(cli_watch.Wait(60), 0) << cli_watch.err();
   ASSERT_TRUE(std::filesystem::exists(dir.Path("w.png")));
   EXPECT_EQ(ReadImage(dir.Path("w.png")).width, 64);
-  EXPECT_FALSE(std::filesystem::exists(dir.Path("w.png.part")));
+  for (const std::filesystem::directory_entry& e : std::filesystem::directory_iterator(dir.Path("")))
+    EXPECT_EQ(e.path().filename().string().find(".w.png.tmp"), std::string::npos) << "left " << e.path();
 }
 
 // Self-signed certificate for 127.0.0.1 made with the openssl command line tool.
