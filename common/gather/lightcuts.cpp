@@ -237,38 +237,6 @@ LobeBound MaterialLobeBound(const Material& m, Vec3 wo, TransportMode mode) {
 // ---------------------------------------------------------------------------------------
 // Per-node emission bounds of VPL clusters (max over the node's lights)
 
-// Smallest cone containing cones a and b (angles as cosines; -1: unbounded).
-void UnionCones(Vec3 axis_a, float cos_a, Vec3 axis_b, float cos_b, Vec3* axis, float* cos_out) {
-  if (cos_a <= -1.f || cos_b <= -1.f) {
-    *axis = axis_a;
-    *cos_out = -1.f;
-    return;
-  }
-  const float theta_a = SafeAcos(cos_a), theta_b = SafeAcos(cos_b);
-  const float theta_d = SafeAcos(Dot(axis_a, axis_b));
-  if (theta_d + theta_b <= theta_a) {
-    *axis = axis_a;
-    *cos_out = cos_a;
-    return;
-  }
-  if (theta_d + theta_a <= theta_b) {
-    *axis = axis_b;
-    *cos_out = cos_b;
-    return;
-  }
-  const float theta_o = 0.5f * (theta_a + theta_d + theta_b);
-  Vec3 ortho = axis_b - axis_a * Dot(axis_a, axis_b);
-  const float len = Length(ortho);
-  if (theta_o >= kPi || len < 1e-6f) {
-    *axis = axis_a;
-    *cos_out = -1.f;
-    return;
-  }
-  const float theta_r = theta_o - theta_a;
-  *axis = Normalize(axis_a * std::cos(theta_r) + ortho * (std::sin(theta_r) / len));
-  *cos_out = std::max(-1.f, std::cos(theta_o) - 1e-5f);
-}
-
 struct EmissionBound {
   float diffuse_front = 0;  // × cosine bound of the normal cone
   float diffuse_back = 0;   // × cosine bound of the reversed cone

@@ -62,47 +62,6 @@ Vec3 EmissionNormal(const VirtualLight& l) {
   return l.n;
 }
 
-// Smallest cone containing cones a and b (pbrt-v4's DirectionCone::Union construction).
-void UnionCones(Vec3 axis_a, float cos_a, Vec3 axis_b, float cos_b, Vec3* axis, float* cos_out) {
-  if (cos_a <= -1.f || cos_b <= -1.f) {
-    *axis = axis_a;
-    *cos_out = -1.f;
-    return;
-  }
-  const float theta_a = SafeAcos(cos_a), theta_b = SafeAcos(cos_b);
-  const float theta_d = SafeAcos(Dot(axis_a, axis_b));
-  // One cone already contains the other.
-  if (std::min(theta_d + theta_b, kPi) <= theta_a) {
-    *axis = axis_a;
-    *cos_out = cos_a;
-    return;
-  }
-  if (std::min(theta_d + theta_a, kPi) <= theta_b) {
-    *axis = axis_b;
-    *cos_out = cos_b;
-    return;
-  }
-  const float theta_o = 0.5f * (theta_a + theta_d + theta_b);
-  if (theta_o >= kPi) {
-    *axis = axis_a;
-    *cos_out = -1.f;
-    return;
-  }
-  // Rotate axis_a towards axis_b by theta_o − theta_a.
-  const float theta_r = theta_o - theta_a;
-  Vec3 ortho = axis_b - axis_a * Dot(axis_a, axis_b);
-  float len = Length(ortho);
-  if (len < 1e-6f) {
-    Vec3 t;
-    CoordinateSystem(axis_a, &ortho, &t);
-  } else {
-    ortho = ortho / len;
-  }
-  *axis = Normalize(axis_a * std::cos(theta_r) + ortho * std::sin(theta_r));
-  // A small margin keeps the rounding of acos/cos from excluding a boundary normal.
-  *cos_out = std::max(-1.f, std::cos(theta_o) - 1e-5f);
-}
-
 // Per-bin summary used to cost a split.
 struct BinStats {
   Bounds3 points, normals;
@@ -355,6 +314,46 @@ class TreeBuilder {
 };
 
 }  // namespace
+
+void UnionCones(Vec3 axis_a, float cos_a, Vec3 axis_b, float cos_b, Vec3* axis, float* cos_out) {
+  if (cos_a <= -1.f || cos_b <= -1.f) {
+    *axis = axis_a;
+    *cos_out = -1.f;
+    return;
+  }
+  const float theta_a = SafeAcos(cos_a), theta_b = SafeAcos(cos_b);
+  const float theta_d = SafeAcos(Dot(axis_a, axis_b));
+  // One cone already contains the other.
+  if (std::min(theta_d + theta_b, kPi) <= theta_a) {
+    *axis = axis_a;
+    *cos_out = cos_a;
+    return;
+  }
+  if (std::min(theta_d + theta_a, kPi) <= theta_b) {
+    *axis = axis_b;
+    *cos_out = cos_b;
+    return;
+  }
+  const float theta_o = 0.5f * (theta_a + theta_d + theta_b);
+  if (theta_o >= kPi) {
+    *axis = axis_a;
+    *cos_out = -1.f;
+    return;
+  }
+  // Rotate axis_a towards axis_b by theta_o − theta_a.
+  const float theta_r = theta_o - theta_a;
+  Vec3 ortho = axis_b - axis_a * Dot(axis_a, axis_b);
+  float len = Length(ortho);
+  if (len < 1e-6f) {
+    Vec3 t;
+    CoordinateSystem(axis_a, &ortho, &t);
+  } else {
+    ortho = ortho / len;
+  }
+  *axis = Normalize(axis_a * std::cos(theta_r) + ortho * std::sin(theta_r));
+  // A small margin keeps the rounding of acos/cos from excluding a boundary normal.
+  *cos_out = std::max(-1.f, std::cos(theta_o) - 1e-5f);
+}
 
 LightTree LightTree::Build(const LightSet& lights, uint64_t seed) {
   LightTree tree;

@@ -14,6 +14,11 @@
 
 namespace lightfarm {
 
+// The smallest cone containing the cones (axis_a, cos_a) and (axis_b, cos_b), half-angles as
+// cosines (-1: every direction), pbrt-v4's DirectionCone::Union construction: the light tree's
+// emission cones and lightcuts' glossy mirror cones both use it.
+void UnionCones(Vec3 axis_a, float cos_a, Vec3 axis_b, float cos_b, Vec3* axis, float* cos_out);
+
 struct LightTreeNode {
   Bounds3 bounds;        // positions (directional lights: their unit directions; VRLs: both ends)
   Vec3 cone_axis{0, 0, 1};

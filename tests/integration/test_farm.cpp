@@ -140,7 +140,8 @@ FarmRender SubmitToTwoWorkers(TempDir& dir, const std::string& scene, const std:
 
 // A media scene through the whole pipeline on real processes: the cloud (NanoVDB density, VRLs,
 // eye segments partitioned by METIS on the coordinator) gathered by adaptive-completion on two
-// worker processes gives the direct render's bits, and its stats show the media work.
+// worker processes gives the direct render's bits, the clamp's compensation in the medium
+// included (a distant light alone: on by default), and its stats show the media work.
 TEST(Farm, MediaSceneOnWorkerProcessesMatchesTheDirectRenderBitForBit) {
   const std::string cloud = SourcePath("scenes/cloud/scene.pbrt");
   const std::vector<std::string> args = {"--method", "adaptive-completion", "--resolution", "24x24",
@@ -165,6 +166,9 @@ TEST(Farm, MediaSceneOnWorkerProcessesMatchesTheDirectRenderBitForBit) {
   EXPECT_EQ(stats["tasks"], direct.stats["tasks"]);
   EXPECT_EQ(stats["matrix"]["elements_evaluated"], direct.stats["matrix"]["elements_evaluated"]);
   EXPECT_GT(stats["matrix"]["transmittance_evals"].get<double>(), 0);
+  EXPECT_EQ(stats["clamp"]["media_compensation"], true);
+  EXPECT_GT(direct.stats["clamp"]["compensation_paths"].get<double>(), 0);
+  EXPECT_EQ(stats["clamp"]["compensation_paths"], direct.stats["clamp"]["compensation_paths"]);
   const auto effects = stats["effects"].get<std::vector<std::string>>();
   EXPECT_NE(std::find(effects.begin(), effects.end(), "media"), effects.end());
 }
