@@ -6,8 +6,8 @@
 // at equal time (docs/methods/media-elements.md, "The defaults against path"): with a caustic
 // path (a specular surface and indirect light: a volumetric caustic, which the path tracer's
 // next-event estimation cannot reach through glass) by `adaptive-completion`, whose light paths
-// carry it; else by `path` (on the cloud no light count of a many-light method reached path's
-// error at equal time: the clamp's bias and the near lights' cost). Brute force, which the 2% target would
+// carry it; else by `path` (on the cloud adaptive-completion is behind it at equal time at 128²
+// and level at 256², docs/media-vs-path.md: the near lights' cost). Brute force, which the 2% target would
 // pick, takes hours at a scene's own resolution. With a target, a scene with media chooses
 // between `adaptive-completion` (Huo 2016's media method, the one measured on media scenes) and
 // `brute`, exact: adaptive-completion when its worst measured rel_l2 there
