@@ -38,8 +38,8 @@
 #include <tbb/global_control.h>
 
 #include "common/farm/render_client.h"
-#include "common/farm/stage_engine.h"
-#include "common/farm/serialize.h"
+#include "common/render/stage_engine.h"
+#include "common/render/serialize.h"
 #include "coordinator/coordinator.h"
 #include "coordinator/services.h"
 #include "lightfarm/v1/worker.grpc.pb.h"

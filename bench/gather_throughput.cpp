@@ -13,7 +13,7 @@
 #include <map>
 #include <numeric>
 
-#include "common/farm/render_job.h"
+#include "common/render/render_job.h"
 #include "common/integrator/path_tracer.h"
 #include "common/util/rng.h"
 

@@ -7,7 +7,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "common/farm/render_job.h"
+#include "common/render/render_job.h"
 #include "lightfarm/v1/render.pb.h"
 
 namespace lightfarm {

@@ -5,7 +5,7 @@
 #include <string>
 #include <vector>
 
-#include "common/farm/render_job.h"
+#include "common/render/render_job.h"
 
 namespace lightfarm::cli {
 

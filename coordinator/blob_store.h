@@ -13,7 +13,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "common/farm/serialize.h"
+#include "common/render/serialize.h"
 #include "common/farm/content_hash.h"
 
 namespace lightfarm {

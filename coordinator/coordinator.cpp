@@ -9,7 +9,7 @@
 #include <sstream>
 
 #include "common/farm/proto_convert.h"
-#include "common/farm/stage_engine.h"
+#include "common/render/stage_engine.h"
 #include "common/gather/auto_method.h"
 #include "common/util/error.h"
 

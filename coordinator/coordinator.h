@@ -19,8 +19,8 @@
 #include <vector>
 
 #include "common/farm/farm_protocol.h"
-#include "common/farm/render_job.h"
-#include "common/farm/serialize.h"
+#include "common/render/render_job.h"
+#include "common/render/serialize.h"
 #include "coordinator/blob_store.h"
 #include "coordinator/job_images.h"
 #include "coordinator/job_planner.h"

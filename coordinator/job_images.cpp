@@ -3,7 +3,7 @@
 #include <algorithm>
 #include <filesystem>
 
-#include "common/farm/stage_engine.h"
+#include "common/render/stage_engine.h"
 #include "common/image/image_io.h"
 #include "common/util/file.h"
 

@@ -8,8 +8,8 @@
 #include <utility>
 #include <vector>
 
-#include "common/farm/render_job.h"
-#include "common/farm/serialize.h"
+#include "common/render/render_job.h"
+#include "common/render/serialize.h"
 
 namespace lightfarm {
 

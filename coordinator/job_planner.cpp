@@ -6,7 +6,7 @@
 #include <stdexcept>
 
 #include "common/farm/proto_convert.h"
-#include "common/farm/stage_engine.h"
+#include "common/render/stage_engine.h"
 #include "common/util/error.h"
 
 namespace lightfarm {

@@ -1,4 +1,4 @@
-// libFuzzer target: the farm's binary decoders (common/farm/serialize.h) on arbitrary bytes.
+// libFuzzer target: the farm's binary decoders (common/render/serialize.h) on arbitrary bytes.
 // Each must either decode or throw SerializeError; whatever decodes must survive a round trip:
 // its encoding decodes to a value with the same encoding. (The input itself may differ from that
 // encoding: TaskOutput's stats are a map, so keys in another order decode to the same value.)
@@ -6,7 +6,7 @@
 #include <cstdint>
 #include <cstdlib>
 
-#include "common/farm/serialize.h"
+#include "common/render/serialize.h"
 
 namespace {
 

@@ -6,7 +6,7 @@
 #include <fstream>
 #include <string>
 
-#include "common/farm/serialize.h"
+#include "common/render/serialize.h"
 #include "common/scene/ply.h"
 
 namespace fs = std::filesystem;

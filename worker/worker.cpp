@@ -15,7 +15,7 @@
 #include "common/farm/farm_protocol.h"
 #include "common/farm/proto_convert.h"
 #include "common/farm/rpc.h"
-#include "common/farm/serialize.h"
+#include "common/render/serialize.h"
 #include "common/util/file.h"
 #include "common/scene/scene_description.h"
 

@@ -17,7 +17,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "common/farm/render_job.h"
+#include "common/render/render_job.h"
 #include "common/farm/farm_protocol.h"
 #include "lightfarm/v1/worker.grpc.pb.h"
 

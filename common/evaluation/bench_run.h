@@ -12,7 +12,7 @@
 #include "common/evaluation/reference.h"
 #include "common/evaluation/sweeps.h"
 #include "common/evaluation/truth.h"
-#include "common/farm/render_job.h"
+#include "common/render/render_job.h"
 
 namespace lightfarm {
 

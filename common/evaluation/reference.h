@@ -13,7 +13,7 @@
 #include <string>
 #include <vector>
 
-#include "common/farm/render_job.h"
+#include "common/render/render_job.h"
 #include "common/image/image.h"
 #include "common/image/metrics.h"
 

@@ -8,7 +8,7 @@
 #include <cstdint>
 #include <string>
 
-#include "common/farm/render_job.h"
+#include "common/render/render_job.h"
 #include "common/image/image.h"
 
 namespace lightfarm {

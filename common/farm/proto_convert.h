@@ -2,7 +2,7 @@
 // only generated protobuf messages, never gRPC; built into lightfarm_farm, not lightfarm_common.
 #pragma once
 
-#include "common/farm/render_job.h"
+#include "common/render/render_job.h"
 #include "lightfarm/v1/types.pb.h"
 
 namespace lightfarm {

@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include "common/farm/render_job.h"
+#include "common/render/render_job.h"
 #include "common/farm/rpc.h"
 #include "lightfarm/v1/render.grpc.pb.h"
 

@@ -1,4 +1,4 @@
-#include "common/farm/progressive.h"
+#include "common/render/progressive.h"
 
 #include <algorithm>
 #include <cmath>

@@ -8,7 +8,7 @@
 #include <limits>
 #include <vector>
 
-#include "common/farm/serialize.h"
+#include "common/render/serialize.h"
 #include "common/image/image.h"
 
 namespace lightfarm {

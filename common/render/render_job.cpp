@@ -1,11 +1,11 @@
-#include "common/farm/render_job.h"
+#include "common/render/render_job.h"
 
 #include <spdlog/spdlog.h>
 
 #include <chrono>
 
 #include "common/evaluation/clamp_probe.h"
-#include "common/farm/stage_engine.h"
+#include "common/render/stage_engine.h"
 #include "common/gather/auto_method.h"
 #include "common/image/film.h"
 #include "common/image/filter.h"

@@ -11,7 +11,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "common/farm/progressive.h"
+#include "common/render/progressive.h"
 #include "common/gather/gather.h"
 #include "common/image/image.h"
 #include "common/lights/light_generation.h"

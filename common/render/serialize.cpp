@@ -1,4 +1,4 @@
-#include "common/farm/serialize.h"
+#include "common/render/serialize.h"
 
 #include <bit>
 #include <cstring>

@@ -1,4 +1,4 @@
-#include "common/farm/stage_engine.h"
+#include "common/render/stage_engine.h"
 
 #include <stdexcept>
 

@@ -1,6 +1,6 @@
 // Byte encoding of stage payloads and artifacts inside one method (MRCS, LightSlice): plain
 // values and arrays in host byte order (every farm machine here is little-endian x86-64/arm64;
-// the farm's own messages use common/farm/serialize.h). Reads are bounds-checked: a truncated or
+// the farm's own messages use common/render/serialize.h). Reads are bounds-checked: a truncated or
 // corrupt buffer throws std::runtime_error naming the method and the buffer, never reads past it.
 #pragma once
 

@@ -10,7 +10,7 @@
 #include <random>
 #include <string>
 
-#include "common/farm/render_job.h"
+#include "common/render/render_job.h"
 
 namespace lightfarm::testing {
 

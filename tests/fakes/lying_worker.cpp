@@ -14,7 +14,7 @@
 
 #include "common/farm/farm_protocol.h"
 #include "common/farm/rpc.h"
-#include "common/farm/serialize.h"
+#include "common/render/serialize.h"
 #include "lightfarm/v1/worker.grpc.pb.h"
 
 namespace {

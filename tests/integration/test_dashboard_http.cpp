@@ -7,7 +7,7 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 
-#include "common/farm/render_job.h"
+#include "common/render/render_job.h"
 #include "coordinator/dashboard.h"
 #include "tests/integration/farm_harness.h"
 

@@ -9,7 +9,7 @@
 #include <set>
 #include <thread>
 
-#include "common/farm/render_job.h"
+#include "common/render/render_job.h"
 #include "cli/embedded_farm.h"
 #include "tests/common/caustic_scene.h"
 #include "tests/common/glossy_scene.h"

@@ -10,7 +10,7 @@
 
 #include <grpcpp/generic/generic_stub.h>
 
-#include "common/farm/serialize.h"
+#include "common/render/serialize.h"
 #include "coordinator/coordinator.h"
 #include "lightfarm/v1/worker.grpc.pb.h"
 #include "tests/integration/farm_harness.h"

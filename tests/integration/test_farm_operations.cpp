@@ -5,7 +5,7 @@
 #include <cstdlib>
 #include <filesystem>
 
-#include "common/farm/render_job.h"
+#include "common/render/render_job.h"
 #include "tests/integration/farm_harness.h"
 
 namespace lightfarm {

@@ -8,8 +8,8 @@
 #include <fstream>
 
 #include "cli/embedded_farm.h"
-#include "common/farm/progressive.h"
-#include "common/farm/render_job.h"
+#include "common/render/progressive.h"
+#include "common/render/render_job.h"
 #include "tests/integration/farm_harness.h"
 
 namespace lightfarm {

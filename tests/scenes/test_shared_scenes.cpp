@@ -3,7 +3,7 @@
 
 #include <cmath>
 
-#include "common/farm/render_job.h"
+#include "common/render/render_job.h"
 #include "common/image/image_io.h"
 #include "common/image/metrics.h"
 #include "tests/common/test_util.h"

@@ -15,7 +15,7 @@
 #include <string>
 #include <vector>
 
-#include "common/farm/render_job.h"
+#include "common/render/render_job.h"
 #include "tests/common/glossy_scene.h"
 #include "tests/common/test_util.h"
 

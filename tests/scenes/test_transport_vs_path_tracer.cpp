@@ -13,9 +13,10 @@
 
 #include <cmath>
 #include <string>
+#include <vector>
 
 #include "tests/oracle/volpath/path_tracer.h"
-#include "common/farm/render_job.h"
+#include "common/render/render_job.h"
 #include "common/scene/scene_description.h"
 #include "tests/common/test_util.h"
 
@@ -91,25 +92,30 @@ PathTracedImage TraceWithChecker(const std::string& path) {
   return RenderPathTraced(*scene, pt);
 }
 
+// Brute force on a fog box: box filter, 4 spp, seed 3, `lights` lights.
+RenderOutput RenderBrute(const std::string& path, size_t lights, std::vector<std::string> params) {
+  RenderSettings s;
+  s.method = "brute";
+  s.filter = "box";
+  s.lights = lights;
+  s.spp = 4;
+  s.seed = 3;
+  s.params = std::move(params);
+  return RenderScene(path, s);
+}
+
+// The whole image and its halves: top (back wall, ceiling, fog near the light), bottom
+// (floor), left and right (the coloured walls), as {x0, y0, w, h}.
+constexpr int kRegions[5][4] = {{0, 0, 16, 16}, {0, 0, 16, 8}, {0, 8, 16, 8}, {0, 0, 8, 16}, {8, 0, 8, 16}};
+
 void ExpectMatchesPathTracer(int max_depth, const std::string& media_lights, double tolerance) {
   TempDir dir;
   const std::string path = dir.Write("fog-box.pbrt", FogBox(max_depth));
   const PathTracedImage traced = TraceWithChecker(path);
-
-  RenderSettings s;
-  s.method = "brute";
-  s.filter = "box";
-  s.lights = 6000;
-  s.spp = 4;
-  s.seed = 3;
-  s.params = {"media_lights=" + media_lights, "segments_per_ray=6"};
-  const RenderOutput lf = RenderScene(path, s);
+  const RenderOutput lf = RenderBrute(path, 6000, {"media_lights=" + media_lights, "segments_per_ray=6"});
   ASSERT_GT(lf.stats["receivers"]["segments"].get<double>(), 0);
 
-  // The whole image and its halves: top (back wall, ceiling, fog near the light), bottom
-  // (floor), left and right (the coloured walls)
-  const int regions[5][4] = {{0, 0, 16, 16}, {0, 0, 16, 8}, {0, 8, 16, 8}, {0, 0, 8, 16}, {8, 0, 8, 16}};
-  for (const auto& r : regions) {
+  for (const auto& r : kRegions) {
     const RegionMean a = Mean(traced.mean, &traced.variance_of_mean, r[0], r[1], r[2], r[3]);
     const RegionMean b = Mean(lf.image, nullptr, r[0], r[1], r[2], r[3]);
     ASSERT_GT(a.value, 0);
@@ -142,19 +148,11 @@ TEST(TransportVsPathTracer, TheClampsLossInTheFogIsCompensated) {
   TempDir dir;
   const std::string path = dir.Write("fog-box.pbrt", FogBox(3));
   const PathTracedImage traced = TraceWithChecker(path);
-  RenderSettings s;
-  s.method = "brute";
-  s.filter = "box";
-  s.lights = 2000;
-  s.spp = 4;
-  s.seed = 3;
-  s.params = {"clamp=0.2", "clamp_compensation=0"};
-  const RenderOutput clamped = RenderScene(path, s);
-  s.params = {"clamp=0.2", "clamp_compensation=16", "media_compensation=1"};
-  const RenderOutput compensated = RenderScene(path, s);
+  const RenderOutput clamped = RenderBrute(path, 2000, {"clamp=0.2", "clamp_compensation=0"});
+  const RenderOutput compensated =
+      RenderBrute(path, 2000, {"clamp=0.2", "clamp_compensation=16", "media_compensation=1"});
   EXPECT_GT(compensated.stats["clamp"]["compensation_paths"].get<double>(), 0);
-  const int regions[5][4] = {{0, 0, 16, 16}, {0, 0, 16, 8}, {0, 8, 16, 8}, {0, 0, 8, 16}, {8, 0, 8, 16}};
-  for (const auto& r : regions) {
+  for (const auto& r : kRegions) {
     const RegionMean a = Mean(traced.mean, &traced.variance_of_mean, r[0], r[1], r[2], r[3]);
     const RegionMean lost = Mean(clamped.image, nullptr, r[0], r[1], r[2], r[3]);
     const RegionMean back = Mean(compensated.image, nullptr, r[0], r[1], r[2], r[3]);
@@ -180,8 +178,7 @@ void ExpectPathMethodMatchesPathTracer(int max_depth) {
   s.spp = 4096;
   s.seed = 4;
   const RenderOutput lf = RenderScene(path, s);
-  const int regions[5][4] = {{0, 0, 16, 16}, {0, 0, 16, 8}, {0, 8, 16, 8}, {0, 0, 8, 16}, {8, 0, 8, 16}};
-  for (const auto& r : regions) {
+  for (const auto& r : kRegions) {
     const RegionMean a = Mean(traced.mean, &traced.variance_of_mean, r[0], r[1], r[2], r[3]);
     const RegionMean b = Mean(lf.image, nullptr, r[0], r[1], r[2], r[3]);
     ASSERT_GT(a.value, 0);

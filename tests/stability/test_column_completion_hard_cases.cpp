@@ -11,7 +11,7 @@
 #include <string>
 #include <vector>
 
-#include "common/farm/render_job.h"
+#include "common/render/render_job.h"
 #include "common/matrix/column_completion.h"
 #include "common/util/rng.h"
 #include "tests/stability/stability_util.h"

@@ -9,7 +9,7 @@
 #include <sstream>
 #include <string>
 
-#include "common/farm/render_job.h"
+#include "common/render/render_job.h"
 #include "common/scene/ply.h"
 #include "common/util/error.h"
 #include "tests/stability/stability_util.h"

@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include "common/farm/serialize.h"
+#include "common/render/serialize.h"
 #include "common/scene/ply.h"
 #include "common/scene/scene_description.h"
 #include "common/util/error.h"

@@ -15,7 +15,7 @@
 #include <string>
 #include <vector>
 
-#include "common/farm/render_job.h"
+#include "common/render/render_job.h"
 #include "tests/stability/stability_util.h"
 
 namespace lightfarm {

@@ -8,7 +8,7 @@
 #include <cstdio>
 #include <string>
 
-#include "common/farm/render_job.h"
+#include "common/render/render_job.h"
 #include "common/image/metrics.h"
 #include "tests/stability/stability_util.h"
 

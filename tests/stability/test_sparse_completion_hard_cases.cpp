@@ -9,7 +9,7 @@
 #include <cstdio>
 #include <string>
 
-#include "common/farm/render_job.h"
+#include "common/render/render_job.h"
 #include "tests/stability/stability_util.h"
 
 namespace lightfarm {

@@ -8,7 +8,7 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 
-#include "common/farm/render_job.h"
+#include "common/render/render_job.h"
 #include "common/gather/auto_method.h"
 #include "common/gather/gather.h"
 #include "common/util/error.h"

@@ -9,7 +9,7 @@
 #include <cstdio>
 #include <string>
 
-#include "common/farm/render_job.h"
+#include "common/render/render_job.h"
 #include "tests/common/caustic_scene.h"
 #include "tests/common/test_util.h"
 

@@ -10,7 +10,7 @@
 #include <vector>
 
 #include "common/evaluation/clamp_probe.h"
-#include "common/farm/render_job.h"
+#include "common/render/render_job.h"
 #include "tests/common/glossy_scene.h"
 #include "tests/common/test_util.h"
 

@@ -1,14 +1,14 @@
 // The layout is the architecture (DESIGN.md, "Dependencies"): these tests read every source file's
 // #include lines and fail on an arrow pointing the wrong way, so a shortcut across layers is
 // caught at the next test run instead of in review.
-//   common/ (the renderer, no networking)  <-  common/farm core (gRPC, protobuf, OpenSSL)
+//   common/ (the renderer and its pipeline, common/render/; no networking)  <-  common/farm/ (the
+//   farm core: the wire's rules, gRPC, protobuf, OpenSSL)
 //   <-  coordinator/, worker/ (never each other)  <-  cli/ (embedded mode links both)
 #include <gtest/gtest.h>
 
 #include <filesystem>
 #include <fstream>
 #include <regex>
-#include <set>
 #include <string>
 #include <vector>
 
@@ -48,13 +48,9 @@ std::vector<Include> IncludesUnder(const std::vector<std::string>& folders) {
 
 bool StartsWith(const std::string& s, const std::string& prefix) { return s.rfind(prefix, 0) == 0; }
 
-// The files of common/farm that talk gRPC (target lightfarm_farm_core in CMakeLists.txt).
-bool IsFarmCore(const std::string& file) {
-  static const std::set<std::string> stems = {"proto_convert", "rpc", "render_client", "content_hash",
-                                              "program"};
-  const fs::path p(file);
-  return p.parent_path() == "common/farm" && stems.count(p.stem().string()) > 0;
-}
+// common/farm/ is the farm's shared layer, target lightfarm_farm_core (CMakeLists.txt builds it
+// from the folder, and lightfarm_common from common/ without it): the folder is the target.
+bool IsFarmCore(const std::string& file) { return StartsWith(file, "common/farm/"); }
 
 std::string Where(const Include& inc) { return inc.file + ":" + std::to_string(inc.line) + " includes " + inc.target; }
 

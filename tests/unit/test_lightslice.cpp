@@ -13,7 +13,7 @@
 #include <limits>
 #include <set>
 
-#include "common/farm/render_job.h"
+#include "common/render/render_job.h"
 #include "common/gather/gather.h"
 #include "common/gather/lightslice.h"
 #include "common/image/metrics.h"

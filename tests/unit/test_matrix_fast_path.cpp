@@ -5,7 +5,7 @@
 
 #include <cstring>
 
-#include "common/farm/render_job.h"
+#include "common/render/render_job.h"
 #include "common/util/rng.h"
 #include "tests/common/test_util.h"
 

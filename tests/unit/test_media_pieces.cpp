@@ -9,7 +9,7 @@
 #include <memory>
 #include <vector>
 
-#include "common/farm/render_job.h"
+#include "common/render/render_job.h"
 #include "common/lights/light_generation.h"
 #include "common/matrix/lighting_matrix.h"
 #include "common/scene/medium_track.h"

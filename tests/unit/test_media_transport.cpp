@@ -7,7 +7,7 @@
 #include <cmath>
 #include <string>
 
-#include "common/farm/render_job.h"
+#include "common/render/render_job.h"
 #include "tests/common/test_util.h"
 
 namespace lightfarm {

@@ -11,7 +11,7 @@
 #include <cstring>
 #include <set>
 
-#include "common/farm/render_job.h"
+#include "common/render/render_job.h"
 #include "common/gather/mrcs_clustering.h"
 #include "common/util/rng.h"
 #include "tests/common/test_util.h"

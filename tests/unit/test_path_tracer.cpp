@@ -11,7 +11,7 @@
 #include <vector>
 #include <string>
 
-#include "common/farm/render_job.h"
+#include "common/render/render_job.h"
 #include "common/lights/emitters.h"
 #include "tests/common/test_util.h"
 

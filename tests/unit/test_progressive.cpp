@@ -1,4 +1,4 @@
-// Progressive references (common/farm/progressive.h): the accumulated mean is the direct average
+// Progressive references (common/render/progressive.h): the accumulated mean is the direct average
 // of independent renders, bit for bit; the noise estimate from the spread of one job's passes
 // agrees with the spread of independent jobs; the stop rule stops at the first pass below the
 // target; the accumulation survives serialization (a restarted coordinator resumes from it).
@@ -9,8 +9,8 @@
 #include <cstdio>
 #include <vector>
 
-#include "common/farm/progressive.h"
-#include "common/farm/render_job.h"
+#include "common/render/progressive.h"
+#include "common/render/render_job.h"
 #include "tests/common/test_util.h"
 
 namespace lightfarm {

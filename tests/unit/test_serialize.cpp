@@ -1,4 +1,4 @@
-// The farm's binary encodings (common/farm/serialize.h): exact round trips (bit-for-bit floats,
+// The farm's binary encodings (common/render/serialize.h): exact round trips (bit-for-bit floats,
 // which farm/embedded identity relies on) and rejection of malformed bytes without crashing.
 #include <gtest/gtest.h>
 
@@ -8,7 +8,7 @@
 #include <limits>
 #include <random>
 
-#include "common/farm/serialize.h"
+#include "common/render/serialize.h"
 
 namespace lightfarm {
 namespace test_serialize {

@@ -9,7 +9,7 @@
 #include <set>
 #include <vector>
 
-#include "common/farm/render_job.h"
+#include "common/render/render_job.h"
 #include "common/receivers/slicing.h"
 #include "common/util/rng.h"
 #include "tests/common/test_util.h"

@@ -8,7 +8,7 @@
 #include <cmath>
 #include <string>
 
-#include "common/farm/render_job.h"
+#include "common/render/render_job.h"
 #include "common/gather/gather.h"
 #include "common/image/metrics.h"
 #include "common/util/error.h"

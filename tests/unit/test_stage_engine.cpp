@@ -1,4 +1,4 @@
-// The stage engine (common/farm/stage_engine.h) is the one order every driver follows: tasks may
+// The stage engine (common/render/stage_engine.h) is the one order every driver follows: tasks may
 // run in any order on any process, but a driver that combines and adds their outputs in task
 // order gets the bits RunStagesLocally gets. The coordinator's resume and the farm tests rely on it.
 #include <gtest/gtest.h>
@@ -6,8 +6,8 @@
 #include <stdexcept>
 #include <vector>
 
-#include "common/farm/render_job.h"
-#include "common/farm/stage_engine.h"
+#include "common/render/render_job.h"
+#include "common/render/stage_engine.h"
 #include "tests/common/test_util.h"
 
 namespace lightfarm {

@@ -12,8 +12,8 @@
 #include <memory>
 #include <string>
 
-#include "common/farm/render_job.h"
-#include "common/farm/serialize.h"
+#include "common/render/render_job.h"
+#include "common/render/serialize.h"
 #include "common/lights/light_generation.h"
 #include "common/lights/light_tree.h"
 #include "common/matrix/lighting_matrix.h"
