@@ -129,8 +129,6 @@ RGBAccum LightingMatrix::SegmentCompensation(uint32_t row, MatrixCounters* count
   const MediumTrack& track = SegmentTrack(si, &scratch);
   if (track.empty()) return sum;
   const float g = scene_.media()[seg.medium].g();
-  FirstVertexWeight window = medium_window_;
-  window.emission = segment_emitter_columns_ ? 1.f : 0.f;
   PathCounters pc;
   const int n = compensation_samples_ * kSegmentCompensationFactor;
   const float inv_n = 1.f / float(n);
@@ -146,7 +144,8 @@ RGBAccum LightingMatrix::SegmentCompensation(uint32_t row, MatrixCounters* count
     // after arriving from y = x + d_y·ω, the direction the phase function is sampled in.
     const Vec3 w = SampleHenyeyGreenstein(seg.d, g, rng.Uniform(), rng.Uniform(), &pdf_w);
     ++counters->compensation_paths;
-    const RGB Li = compensation_tracer_->Li({seg.o + seg.d * t, w, kInfinity}, seg.medium, budget, rng, &pc, &window);
+    const RGB Li = compensation_tracer_->Li({seg.o + seg.d * t, w, kInfinity}, seg.medium, budget, rng, &pc,
+                                            &segment_window_);
     const RGB c = seg.throughput * x.sigma_s * x.tr * Li * (inv_n / pdf_t);
     if (c.IsFinite()) sum.Add(c);
   }

@@ -250,6 +250,9 @@ LightingMatrix::LightingMatrix(const Scene& scene, const ReceiverSet& receivers,
     medium_window_.window = clamp_distance_;
     medium_window_.specular = 0.f;
     medium_window_.arrival = [](Vec3, Vec3) { return 1.f; };
+    // An eye segment's emitter light is the camera side's unless area VPLs are its columns.
+    segment_window_ = medium_window_;
+    segment_window_.emission = segment_emitter_columns_ ? 1.f : 0.f;
     if (bound_binds_ && !scene.has_media()) compensation_emitters_ = std::make_unique<EmitterSampler>(scene);
   }
   caustic_photons_ = options.caustic_photons >= 0 ? options.caustic_photons

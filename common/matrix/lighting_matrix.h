@@ -283,8 +283,8 @@ class LightingMatrix {
   DiffuseLightArrays light_arrays_;
   float clamp_distance_ = 0, clamp_distance2_ = 0;
   // The compensation's first vertex in a medium: forced within the clamp distance, weighted by
-  // the clamp's share (clamp_compensation.cpp).
-  FirstVertexWeight medium_window_;
+  // the clamp's share (clamp_compensation.cpp); from a surface row, and from an eye segment.
+  FirstVertexWeight medium_window_, segment_window_;
   bool media_compensation_ = false;
   // The element bound's limits (MatrixOptions::bsdf_clamp; 0: off) and whether any material of
   // the scene can reach them (else the compensation traces only the geometry clamp's residual).
