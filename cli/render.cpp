@@ -12,6 +12,7 @@
 #include "cli/progress.h"
 #include "cli/render_options.h"
 #include "cli/target_error.h"
+#include "common/evaluation/clamp_probe.h"
 #include "common/image/image_io.h"
 #include "common/util/error.h"
 #include "common/util/file.h"
@@ -37,6 +38,7 @@ void RunRender(const RenderArgs& a) {
   TargetErrorArgs target_args = a.target;
   target_args.lights_given = a.render.lights > 0;
   const TargetErrorPlan target = ApplyTargetError(target_args, a.scene, &s);
+  const int clamp_probe = TakeClampProbe(&s);
   if (a.out.size() < 5 || a.out.substr(a.out.size() - 4) != ".exr")
     throw OptionError("--out must name an .exr file, got \"" + a.out + "\"");
   RequireImageIo();
@@ -57,6 +59,7 @@ void RunRender(const RenderArgs& a) {
       bar.Update(ProgressPhase(st), st.tasks_done(), st.tasks_total());
   });
   bar.Finish();
+  AddClampProbe(a.scene, s, clamp_probe, &out.stats);
   // All outputs or none: a failure on a later file (an unwritable --stats) removes the earlier
   // ones, so a failed run never leaves a result that looks complete.
   const std::string png = a.out.substr(0, a.out.size() - 4) + ".png";

@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Renders every shared scene and every project scene with auto, brute, mrcs and path using two
 # lightfarm builds, and compares the pixels (oiiotool, zero tolerance) and the stats JSON (times
-# removed). For refactors that must not change a bit: `scripts/compare-builds.sh OLD/lightfarm
-# build/lightfarm`. Exit 1 when anything differs.
+# removed; keys only the new build has are listed, not failures). For refactors that must not
+# change a bit: `scripts/compare-builds.sh OLD/lightfarm build/lightfarm`. Exit 1 when anything
+# differs.
 set -uo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 shared=${LIGHTFARM_SHARED:-$root/../shared}
@@ -20,23 +21,34 @@ for scene in "${scenes[@]}"; do
       "$bin" render "$scene" --method $method --resolution 32x24 --spp 2 --lights 1000 --seed 3 \
         --threads 2 --out "$tmp/$side-$name-$method.exr" --stats "$tmp/$side-$name-$method.json" >/dev/null 2>&1 \
         || { echo "$side build failed on $scene ($method)"; differ=$((differ + 1)); continue 2; }
-      python3 - "$tmp/$side-$name-$method.json" <<'PY'
-import json, sys
-def strip(x):
-    if isinstance(x, dict):
-        return {k: strip(v) for k, v in x.items() if k != "time" and not k.endswith("_s")}
-    return x
-path = sys.argv[1]
-json.dump(strip(json.load(open(path))), open(path + ".cmp", "w"), sort_keys=True, indent=1)
-PY
     done
     compared=$((compared + 1))
     if ! oiiotool "$tmp/old-$name-$method.exr" "$tmp/new-$name-$method.exr" --fail 0 --failpercent 0 --diff 2>&1 | grep -q '^PASS'; then
       echo "pixels differ: $scene ($method)"; differ=$((differ + 1))
     fi
-    if ! cmp -s "$tmp/old-$name-$method.json.cmp" "$tmp/new-$name-$method.json.cmp"; then
-      echo "stats differ: $scene ($method)"; diff "$tmp/old-$name-$method.json.cmp" "$tmp/new-$name-$method.json.cmp" | head -5
-      differ=$((differ + 1))
+    if ! python3 - "$tmp/old-$name-$method.json" "$tmp/new-$name-$method.json" <<'PY'
+import json, sys
+# Every value the old build reported (times removed) must be the same in the new one; keys only
+# the new build reports are listed, not counted as differences.
+def flat(x, prefix=""):
+    if isinstance(x, dict):
+        out = {}
+        for k, v in x.items():
+            if k != "time" and not k.endswith("_s") and k != "seconds":
+                out.update(flat(v, prefix + k + "."))
+        return out
+    return {prefix.rstrip("."): x}
+old, new = (flat(json.load(open(p))) for p in sys.argv[1:3])
+bad = [k for k in old if k not in new or new[k] != old[k]]
+for k in bad[:5]:
+    print(f"  {k}: {old[k]} -> {new.get(k, '(missing)')}")
+added = sorted(set(new) - set(old))
+if added:
+    print("  new keys: " + ", ".join(added))
+sys.exit(1 if bad else 0)
+PY
+    then
+      echo "stats differ: $scene ($method)"; differ=$((differ + 1))
     fi
   done
 done

@@ -3,11 +3,14 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <chrono>
 #include <array>
 #include <cmath>
 #include <unordered_map>
 #include <vector>
 
+#include "common/util/error.h"
+#include "common/util/options.h"
 #include "common/util/rng.h"
 
 namespace lightfarm {
@@ -113,6 +116,45 @@ ClampLossProbe ProbeClampLoss(const Scene& scene, const ReceiverSet& receivers,
     probe.stderr_ = std::sqrt(var / double(batches - 1) / double(batches));
   }
   return probe;
+}
+
+int TakeClampProbe(RenderSettings* settings) {
+  const std::string key = "clamp_probe";
+  int batches = 0;
+  std::vector<std::string> rest;
+  for (const std::string& entry : settings->params) {
+    if (entry.rfind(key + "=", 0) != 0) {
+      rest.push_back(entry);
+      continue;
+    }
+    batches = int(OptionMap::Parse({entry}).GetInt(key, 0, 0, 100000));
+  }
+  settings->params = std::move(rest);
+  return batches;
+}
+
+void AddClampProbe(const std::string& scene_path, const RenderSettings& settings, int batches,
+                   nlohmann::json* stats) {
+  nlohmann::json& clamp = (*stats)["clamp"];
+  const double denom = clamp.value("unclamped_luminance", 0.0);
+  if (batches <= 0 || denom <= 0) return;
+  const auto t0 = std::chrono::steady_clock::now();
+  const Plan plan = BuildPlan(scene_path, settings, nullptr);
+  if (plan.method->renders_film()) return;
+  const ClampLossProbe probe = ProbeClampLoss(*plan.scene, *plan.receivers, plan.light_options,
+                                              plan.matrix_options, batches);
+  const double compensated = plan.matrix->compensates() ? clamp.value("compensated_fraction", 0.0) : 0.0;
+  // The element bound also binds beyond c, where the probe does not look: its part is the
+  // render's own measure (zero where no material can reach the bound, as on a Lambertian scene).
+  const double expected = probe.mean / denom + clamp.value("bound_lost_fraction", 0.0);
+  clamp["probe"] = {{"light_sets", probe.batches},
+                    {"pairs", probe.pairs},
+                    {"bound_binds", probe.bound_binds},
+                    {"expected_loss_fraction", expected},
+                    {"expected_loss_stderr", probe.stderr_ / denom},
+                    {"largest_light_set_share", probe.largest_share},
+                    {"expected_loss_after_compensation", expected - compensated},
+                    {"seconds", std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count()}};
 }
 
 }  // namespace lightfarm

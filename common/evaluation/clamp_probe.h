@@ -13,9 +13,13 @@
 #pragma once
 
 #include <cstddef>
+#include <string>
+
+#include <nlohmann/json.hpp>
 
 #include "common/lights/light_generation.h"
 #include "common/matrix/lighting_matrix.h"
+#include "common/render/render_job.h"
 #include "common/receivers/receivers.h"
 #include "common/scene/scene.h"
 
@@ -40,5 +44,17 @@ struct ClampLossProbe {
 ClampLossProbe ProbeClampLoss(const Scene& scene, const ReceiverSet& receivers,
                               const LightGenerationOptions& light_options,
                               const MatrixOptions& matrix_options, int batches);
+
+// `lightfarm render --param clamp_probe=N`: a measurement, not part of the image, so the CLI
+// takes it out of the render's parameters (the renderer and the farm never see it) and runs it
+// after the render. TakeClampProbe removes the key and returns N (0 without it; OptionError
+// outside [0, 100000]).
+int TakeClampProbe(RenderSettings* settings);
+// Rebuilds the render's plan (deterministic in its seed: the same receivers, options and light
+// options) and adds `clamp.probe` to the render's stats, measured against its
+// `clamp.unclamped_luminance`: the expected loss beside what the compensation added. Nothing
+// for a film method or a render the clamp took nothing from.
+void AddClampProbe(const std::string& scene_path, const RenderSettings& settings, int batches,
+                   nlohmann::json* stats);
 
 }  // namespace lightfarm

@@ -4,7 +4,6 @@
 
 #include <chrono>
 
-#include "common/evaluation/clamp_probe.h"
 #include "common/render/stage_engine.h"
 #include "common/gather/auto_method.h"
 #include "common/image/film.h"
@@ -131,9 +130,6 @@ Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, Ph
   OptionMap params = OptionMap::Parse(settings.params);
   Plan plan;
   ReadPlanMatrixOptions(params, settings, params.GetDouble("clamp", 0.01, 0.0, 1.0), &plan);
-  // A measurement, not part of the image: the clamp's expected loss over this many more light
-  // sets, reported in the stats beside what the compensation added (docs/clamp.md).
-  plan.clamp_probe = int(params.GetInt("clamp_probe", 0, 0, 100000));
   float direct_fraction = float(params.GetDouble("direct_fraction", 0.5, 0.0, 1.0));
   SlicingOptions slicing;
   slicing.rows_per_slice = size_t(params.GetInt("rows_per_slice", 800, 1, 1 << 24));
@@ -473,6 +469,9 @@ nlohmann::json MakeStats(const Plan& plan, const RenderSettings& settings,
   const double denom = total_lum - counters.clamp_compensated + counters.clamp_lost;
   s["clamp"] = {{"relative", plan.clamp},
                 {"distance", plan.matrix->clamp_distance()},
+                // The fractions' denominator (row-sum luminance); the clamp probe
+                // (common/evaluation/clamp_probe.h) measures against it too.
+                {"unclamped_luminance", denom},
                 {"energy_lost_fraction", denom > 0 ? counters.clamp_lost / denom : 0.0},
                 {"compensation_samples", plan.matrix_options.compensation_samples},
                 {"media_compensation", plan.matrix->compensates_media()},
@@ -484,25 +483,6 @@ nlohmann::json MakeStats(const Plan& plan, const RenderSettings& settings,
                 {"bsdf_clamp", plan.matrix_options.bsdf_clamp},
                 {"bound_elements", counters.bound_elements},
                 {"bound_lost_fraction", denom > 0 ? counters.bound_lost / denom : 0.0}};
-  if (plan.clamp_probe > 0 && !plan.method->renders_film() && denom > 0) {
-    // The expected loss, from independent light sets (clamp_probe.h): against it, what the
-    // compensation added is measured without the render's own light set's swing.
-    const auto t0 = Clock::now();
-    const ClampLossProbe probe = ProbeClampLoss(*plan.scene, *plan.receivers, plan.light_options,
-                                                plan.matrix_options, plan.clamp_probe);
-    const double compensated = plan.matrix->compensates() ? counters.clamp_compensated : 0.0;
-    // The element bound also binds beyond c: its part is the render's own measure (zero where
-    // no material can reach the bound, as on a Lambertian scene).
-    const double expected = probe.mean + counters.bound_lost;
-    s["clamp"]["probe"] = {{"light_sets", probe.batches},
-                           {"pairs", probe.pairs},
-                           {"bound_binds", probe.bound_binds},
-                           {"expected_loss_fraction", expected / denom},
-                           {"expected_loss_stderr", probe.stderr_ / denom},
-                           {"largest_light_set_share", probe.largest_share},
-                           {"expected_loss_after_compensation", (expected - compensated) / denom},
-                           {"seconds", Seconds(t0, Clock::now())}};
-  }
   // Caustics gathered from photons (caustic_photons.h): zero unless the scene has delta lobes
   // on light paths (or --param caustic_photons asks for them).
   // The sharp-lobe split (docs/rendering.md): its threshold and the materials it made sharp.

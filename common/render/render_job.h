@@ -56,8 +56,6 @@ struct Plan {
   MatrixOptions matrix_options;
   double clamp = 0;
   LightGenerationOptions light_options;  // how plan.lights were generated (BuildPlan only)
-  // Light sets of the clamp-loss probe (--param clamp_probe, clamp_probe.h) MakeStats runs; 0: none.
-  int clamp_probe = 0;
   GatherContext context() const { return GatherContext{*matrix, tree.get()}; }
 };
 
