@@ -10,6 +10,7 @@ namespace lightfarm::cli {
 void AddRenderCommand(CLI::App& app);
 void AddCompareCommand(CLI::App& app);
 void AddBenchCommand(CLI::App& app);
+void AddMethodsCommand(CLI::App& app);
 // The farm's client commands (one file each).
 void AddSubmitCommand(CLI::App& app);
 void AddStatusCommand(CLI::App& app);

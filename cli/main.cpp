@@ -20,6 +20,7 @@ int main(int argc, char** argv) {
   lightfarm::cli::AddRenderCommand(app);
   lightfarm::cli::AddCompareCommand(app);
   lightfarm::cli::AddBenchCommand(app);
+  lightfarm::cli::AddMethodsCommand(app);
   lightfarm::cli::AddSubmitCommand(app);
   lightfarm::cli::AddStatusCommand(app);
   lightfarm::cli::AddWatchCommand(app);

@@ -4,11 +4,12 @@
 #include <cstdlib>
 #include <filesystem>
 
+#include "common/evaluation/cost_model.h"
 #include "common/evaluation/reference.h"
 #include "common/farm/program.h"
-#include "common/gather/auto_method.h"
 #include "common/image/image_io.h"
 #include "common/image/metrics.h"
+#include "common/render/method_chooser.h"
 #include "common/util/options.h"
 #include "common/util/error.h"
 
@@ -45,7 +46,7 @@ std::string Short(double v) {
 }
 
 // Adds the choice's parameters to the settings, except keys the user set with --param.
-void AddChosenParams(const TargetChoice& c, const std::vector<std::string>& user_params, RenderSettings* s) {
+void AddChosenParams(const MethodChoice& c, const std::vector<std::string>& user_params, RenderSettings* s) {
   for (const std::string& p : c.params) {
     const std::string key = p.substr(0, p.find('='));
     bool user_set = false;
@@ -65,7 +66,7 @@ bool PrintTruthError(const fs::path& truth_file, const Image& image) {
 }
 
 // Applies a choice made against the truth: method (when auto), lights, spp, parameters.
-void ApplyTruthChoice(const TargetChoice& c, const TargetErrorArgs& a, double target,
+void ApplyTruthChoice(const MethodChoice& c, const TargetErrorArgs& a, double target,
                       const std::vector<std::string>& user_params, RenderSettings* s) {
   if (s->method == kAutoMethod) {
     s->method = c.method;
@@ -73,7 +74,7 @@ void ApplyTruthChoice(const TargetChoice& c, const TargetErrorArgs& a, double ta
                      c.method + (c.setting.empty() ? "" : " " + c.setting) +
                      (c.lights ? ", " + std::to_string(c.lights) + " lights" : "") + ", measured " +
                      Short(c.estimated_error) + ")" +
-                     (c.source.find("no setting reached") != std::string::npos ? "; nothing reached it, the most accurate" : "");
+                     (c.reached ? "" : "; nothing reached it, the most accurate");
     // `auto`'s own parameter means nothing to the chosen method.
     std::vector<std::string> kept;
     for (const std::string& p : s->params)
@@ -102,22 +103,17 @@ TargetErrorPlan ApplyTargetError(const TargetErrorArgs& a, const std::string& sc
     // `auto` with a bench model against the truth: the same choice as --target-error.
     if (!HasTruth(plan.rows)) return plan;
     const double target = OptionMap::Parse(s->params).GetDouble("target_error", kAutoTruthTarget, 1e-6, 1.0);
-    plan.choice = ChooseByTruth(kAutoMethod, target, plan.rows, *s);
+    plan.choice = MethodChooser::BuiltIn().ForTarget(kAutoMethod, target, plan.rows, *s);
     ApplyTruthChoice(plan.choice, a, target, plan.user_params, s);
     std::fprintf(stderr, "auto: %s\n", s->method_rule.c_str());
     return plan;
   }
   plan.active = true;
-  if (HasTruth(plan.rows)) {
-    plan.choice = ChooseByTruth(s->method, a.target, plan.rows, *s);
+  plan.choice = MethodChooser::BuiltIn().ForTarget(s->method, a.target, plan.rows, *s);
+  if (plan.choice.basis == ChoiceBasis::kBenchAgainstTruth)
     ApplyTruthChoice(plan.choice, a, a.target, plan.user_params, s);
-  } else {
-    if (s->method == kAutoMethod)
-      throw OptionError("--target-error with --method auto needs the scene's bench results against the truth "
-                        "(run `lightfarm bench` on it) or a method");
-    plan.choice = ChooseForTargetError(s->method, a.target, plan.rows, *s);
+  else
     AddChosenParams(plan.choice, plan.user_params, s);
-  }
   std::fprintf(stderr, "target error %g (%s): %s %s%s, from %s; predicted time %s\n", a.target,
                plan.choice.metric.c_str(), s->method.c_str(), plan.choice.setting.c_str(),
                plan.choice.lights && s->method != "path" ? (", " + std::to_string(s->lights) + " lights").c_str() : "",

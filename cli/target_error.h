@@ -1,14 +1,15 @@
-// `--target-error E` (render, submit): parameters from the scene's bench cost model
-// (common/evaluation/cost_model.h), a prediction printed before the render, and the estimated and
-// (when a cached brute-force reference exists) measured error after it.
+// `--target-error E` (render, submit): the method chooser's choice from the scene's bench results
+// (common/render/method_chooser.h; where `lightfarm bench` caches them: cost_model.h), a
+// prediction printed before the render, and the estimated and (when a cached brute-force
+// reference exists) measured error after it.
 #pragma once
 
 #include <CLI/CLI.hpp>
 #include <string>
 #include <vector>
 
-#include "common/evaluation/cost_model.h"
 #include "common/image/image.h"
+#include "common/render/method_chooser.h"
 
 namespace lightfarm::cli {
 
@@ -23,7 +24,7 @@ void AddTargetErrorOptions(CLI::App* cmd, TargetErrorArgs& args);
 
 struct TargetErrorPlan {
   bool active = false;
-  TargetChoice choice;
+  MethodChoice choice;
   std::vector<std::string> user_params;  // the render's --param before the choice was added
   std::vector<BenchRow> rows;
 };

@@ -10,7 +10,7 @@
 
 #include "common/farm/proto_convert.h"
 #include "common/render/stage_engine.h"
-#include "common/gather/auto_method.h"
+#include "common/render/method_chooser.h"
 #include "common/util/error.h"
 
 namespace lightfarm {

@@ -10,7 +10,7 @@
 #include <map>
 #include <nlohmann/json.hpp>
 
-#include "common/util/bench_csv.h"
+#include "common/util/bench_table.h"
 #include "common/farm/content_hash.h"
 #include "common/farm/proto_convert.h"
 #include "common/farm/rpc.h"

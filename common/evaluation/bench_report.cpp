@@ -15,21 +15,13 @@
 
 #include "common/image/image_io.h"
 #include "common/image/metrics.h"
+#include "common/render/method_chooser.h"
 
 namespace lightfarm {
 
 namespace fs = std::filesystem;
 
 namespace {
-
-// The median of the finite values; NaN when there are none.
-double Median(std::vector<double> v) {
-  v.erase(std::remove_if(v.begin(), v.end(), [](double x) { return !std::isfinite(x); }), v.end());
-  if (v.empty()) return std::nan("");
-  std::sort(v.begin(), v.end());
-  const size_t n = v.size();
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
 
 std::string Fmt(const char* fmt, double v) {
   char buf[64];
@@ -217,63 +209,20 @@ void TryWriteContactSheet(const std::vector<std::pair<std::string, std::string>>
 
 }  // namespace
 
-std::vector<SettingSummary> Summarize(const std::vector<BenchRow>& rows) {
-  std::vector<SettingSummary> out;
-  std::map<std::tuple<size_t, std::string, std::string>, std::vector<const BenchRow*>> groups;
-  for (const BenchRow& r : rows) {
-    auto key = std::make_tuple(r.lights, r.method, r.setting);
-    if (!groups.count(key)) {
-      SettingSummary s;
-      s.lights = r.lights;
-      s.method = r.method;
-      s.setting = r.setting;
-      out.push_back(s);
-    }
-    groups[key].push_back(&r);
-  }
-  for (SettingSummary& s : out) {
-    const auto& g = groups[std::make_tuple(s.lights, s.method, s.setting)];
-    auto med = [&](double BenchRow::*field) {
-      std::vector<double> v;
-      for (const BenchRow* r : g) v.push_back(r->*field);
-      return Median(v);
-    };
-    s.runs = int(g.size());
-    s.time_s = med(&BenchRow::time_total_s);
-    s.rel_l2 = med(&BenchRow::rel_l2);
-    s.rel_l1 = med(&BenchRow::rel_l1);
-    s.shadow_rays = med(&BenchRow::shadow_rays);
-    s.shadow_rays_per_pixel = med(&BenchRow::shadow_rays_per_pixel);
-    s.elements = med(&BenchRow::elements);
-    s.peak_rss_mb = med(&BenchRow::peak_rss_mb);
-    s.truth_rel_l1 = med(&BenchRow::truth_rel_l1);
-    s.truth_rel_l2 = med(&BenchRow::truth_rel_l2);
-    s.fireflies = med(&BenchRow::fireflies);
-    s.estimated = g.front()->estimated;
-    for (const BenchRow* r : g)
-      if (!r->image.empty()) s.image = r->image;
-  }
-  return out;
-}
-
 double TimeToReach(const std::vector<SettingSummary>& sums, const std::string& method,
                    size_t lights, double error) {
-  double best = -1;
-  for (const SettingSummary& s : sums)
-    if (s.method == method && s.lights == lights && s.rel_l2 <= error &&
-        (best < 0 || s.time_s < best))
-      best = s.time_s;
-  return best;
+  const SettingPick pick = FastestWithin(sums, ErrorAgainst::kBrute, error, [&](const SettingSummary& s) {
+    return s.method == method && s.lights == lights;
+  });
+  return pick.reached ? pick.summary->time_s : -1;
 }
 
 double TimeToReachTruth(const std::vector<SettingSummary>& sums, const std::string& method,
                         size_t lights, double error) {
-  double best = -1;
-  for (const SettingSummary& s : sums)
-    if (s.method == method && (lights == 0 || s.lights == lights) && s.truth_rel_l1 <= error &&
-        (best < 0 || s.time_s < best))
-      best = s.time_s;
-  return best;
+  const SettingPick pick = FastestWithin(sums, ErrorAgainst::kTruth, error, [&](const SettingSummary& s) {
+    return s.method == method && (lights == 0 || s.lights == lights);
+  });
+  return pick.reached ? pick.summary->time_s : -1;
 }
 
 const SettingSummary* BestWithin(const std::vector<SettingSummary>& sums, const std::string& method,

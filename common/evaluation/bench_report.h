@@ -11,23 +11,8 @@
 
 namespace lightfarm {
 
-// The median over repeats of one (light count, method, setting).
-struct SettingSummary {
-  size_t lights = 0;
-  std::string method, setting;
-  int runs = 0;
-  double time_s = 0, rel_l2 = 0, rel_l1 = 0, shadow_rays_per_pixel = 0, shadow_rays = 0;
-  double elements = 0, peak_rss_mb = 0;
-  double truth_rel_l1 = NAN, truth_rel_l2 = NAN, fireflies = NAN;  // NaN: no truth
-  bool estimated = false;
-  std::string image;  // first repeat's image
-};
-
-// One summary per (lights, method, setting) in the order the rows first appear.
-std::vector<SettingSummary> Summarize(const std::vector<BenchRow>& rows);
-
 // Fastest median time among a method's settings (at `lights`) whose median rel_l2 <= error;
-// a negative value when no setting reached it.
+// a negative value when no setting reached it (FastestWithin, as --target-error chooses).
 double TimeToReach(const std::vector<SettingSummary>& summaries, const std::string& method,
                    size_t lights, double error);
 

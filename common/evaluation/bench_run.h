@@ -12,7 +12,7 @@
 #include "common/evaluation/reference.h"
 #include "common/evaluation/sweeps.h"
 #include "common/evaluation/truth.h"
-#include "common/util/bench_csv.h"
+#include "common/util/bench_table.h"
 #include "common/render/render_job.h"
 
 namespace lightfarm {

@@ -23,15 +23,6 @@ MethodSweep ParseSweep(const std::string& method, const std::string& line) {
 
 }  // namespace
 
-std::vector<std::string> SplitParams(const std::string& label) {
-  std::vector<std::string> out;
-  std::stringstream ss(label);
-  std::string item;
-  while (std::getline(ss, item, ','))
-    if (!item.empty()) out.push_back(item);
-  return out;
-}
-
 std::vector<std::string> SweptMethodNames() {
   std::vector<std::string> names;
   for (const GatherMethodInfo& m : GatherMethods())

@@ -5,6 +5,8 @@
 #include <string>
 #include <vector>
 
+#include "common/util/bench_table.h"
+
 namespace lightfarm {
 
 struct SweepSetting {
@@ -27,8 +29,5 @@ std::vector<MethodSweep> SweepsFor(const std::vector<std::string>& methods,
 
 // Registered methods that have a sweep entry (brute, the reference, has none).
 std::vector<std::string> SweptMethodNames();
-
-// Splits "a=1,b=2" into {"a=1", "b=2"}.
-std::vector<std::string> SplitParams(const std::string& label);
 
 }  // namespace lightfarm

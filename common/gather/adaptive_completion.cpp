@@ -743,10 +743,6 @@ GatherMethodInfo AdaptiveCompletionMethod() {
   m.create = CreateAdaptiveCompletionGather;
   // Huo 2016: sampling ratio rho and the error threshold sigma.
   m.sweep = "rho=0.05,sigma=0.05;rho=0.1,sigma=0.02;rho=0.1,sigma=0.01;rho=0.1,sigma=0.005;rho=0.2,sigma=0.002";
-  // auto, media: docs/media-methods.md (`scripts/report-accuracy.sh --media`, 256², 1000–16000
-  // lights), `rho=0.1,sigma=0.01` (looser than the default σ 0.005) against brute force, worst
-  // rel_l2 over volumetric-caustic (0.015–0.021) and the cloud (0.052–0.054).
-  m.auto_media_rel_l2 = 0.054;
   return m;
 }
 

@@ -90,9 +90,9 @@ TaskOutput RunGatherTask(const GatherMethod& method, const GatherContext& ctx, c
                          const StageArtifact& previous);
 
 // What a method declares about itself besides its algorithm, in its own file, next to it
-// (registry.cpp lists the methods): how to create it, how `lightfarm bench` sweeps it, its
-// documented parameters for a target error, and what `auto` measured of it (auto_method.cpp
-// states how those measurements are taken and used).
+// (registry.cpp lists the methods): how to create it, how `lightfarm bench` sweeps it and its
+// documented parameters for a target error. What `auto` knows of it is measured, not declared:
+// the bench results MethodChooser reads (common/render/method_chooser.h).
 struct GatherMethodInfo {
   std::string name;
   std::function<std::unique_ptr<GatherMethod>(const OptionMap&)> create;
@@ -101,11 +101,6 @@ struct GatherMethodInfo {
   // --target-error without bench results for the scene: the documented parameters for a
   // relative error; unset = no such default.
   std::function<std::vector<std::string>(double target)> params_for_target;
-  // `auto`'s measurements against brute force with the same lights (negative: not measured):
-  // worst rel_l2 on cornell-box and shadow rays per pixel there, and worst rel_l2 in media.
-  double auto_surface_rel_l2 = -1;
-  double auto_surface_rays_per_pixel = 0;
-  double auto_media_rel_l2 = -1;
 };
 
 // Every method of this build, in registry order.

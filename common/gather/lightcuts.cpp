@@ -371,9 +371,6 @@ GatherMethodInfo LightcutsMethod() {
     s << std::min(target, 1.0);
     return std::vector<std::string>{"error=" + s.str()};
   };
-  // auto: rel_l2 0.0027 / 0.0021 at 5000 / 20000 lights (auto_method.cpp has the protocol).
-  m.auto_surface_rel_l2 = 0.0027;
-  m.auto_surface_rays_per_pixel = 173.1;
   return m;
 }
 

@@ -510,9 +510,6 @@ GatherMethodInfo LightSliceMethod() {
   m.sweep = "global_clusters=50,local_clusters=75;global_clusters=100,local_clusters=150;"
             "global_clusters=200,local_clusters=300;global_clusters=400,local_clusters=600;"
             "global_clusters=800,local_clusters=1200";
-  // auto: rel_l2 0.031 / 0.039 at 5000 / 20000 lights (auto_method.cpp has the protocol).
-  m.auto_surface_rel_l2 = 0.039;
-  m.auto_surface_rays_per_pixel = 217.8;
   return m;
 }
 

@@ -515,9 +515,6 @@ GatherMethodInfo MrcsMethod() {
     const long columns = std::clamp(std::lround(12.0 / target), 50L, 5000L);
     return std::vector<std::string>{"rows=" + std::to_string(columns / 2), "columns=" + std::to_string(columns)};
   };
-  // auto: rel_l2 0.013 / 0.016 at 5000 / 20000 lights (auto_method.cpp has the protocol).
-  m.auto_surface_rel_l2 = 0.016;
-  m.auto_surface_rays_per_pixel = 1352.4;
   return m;
 }
 

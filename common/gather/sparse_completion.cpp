@@ -514,9 +514,6 @@ GatherMethodInfo SparseCompletionMethod() {
     s << std::clamp(0.002 / target, 0.01, 0.5);
     return std::vector<std::string>{"rate=" + s.str()};
   };
-  // auto: rel_l2 0.041 / 0.040 at 5000 / 20000 lights (auto_method.cpp has the protocol).
-  m.auto_surface_rel_l2 = 0.041;
-  m.auto_surface_rays_per_pixel = 23.7;
   return m;
 }
 

@@ -4,8 +4,8 @@
 
 #include <chrono>
 
+#include "common/render/method_chooser.h"
 #include "common/render/stage_engine.h"
-#include "common/gather/auto_method.h"
 #include "common/image/film.h"
 #include "common/image/filter.h"
 #include "common/lights/light_generation.h"
@@ -77,15 +77,18 @@ void ReadPlanMatrixOptions(const OptionMap& params, const RenderSettings& settin
   ReadMatrixParams(params, settings.seed, &plan->matrix_options);
 }
 
-// `auto` resolved on the scene's effects (auto_method.h), or the method named.
-void ChooseMethod(const RenderSettings& settings, const OptionMap& params, Plan* plan) {
+// `auto` resolved on the scene's effects (MethodChooser::ForScene), or the method named. A
+// choice that carries settings adds them to `params` (a key the user set wins).
+void ChooseMethod(const RenderSettings& settings, OptionMap* params, Plan* plan) {
   if (settings.method == kAutoMethod) {
-    const AutoMethodChoice choice = ResolveAutoMethod(plan->effects, settings.lights, params);
-    spdlog::info("method auto resolved to {} (rule: {})", choice.method, choice.rule);
-    plan->method = CreateGatherMethod(choice.method, params);
-    plan->method_rule = choice.rule;
+    const MethodChoice choice = MethodChooser::BuiltIn().ForScene(plan->effects, settings.lights, *params);
+    params->AddMissing(choice.params);
+    const std::string rule = choice.rule + (choice.setting.empty() ? "" : ": " + choice.setting);
+    spdlog::info("method auto resolved to {} (rule: {})", choice.method, rule);
+    plan->method = CreateGatherMethod(choice.method, *params);
+    plan->method_rule = rule;
   } else {
-    plan->method = CreateGatherMethod(settings.method, params);
+    plan->method = CreateGatherMethod(settings.method, *params);
     plan->method_rule = settings.method_rule;
   }
 }
@@ -183,7 +186,7 @@ Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, Ph
   if (auto_method) {
     CheckGatherMethodOptions(settings.method, params);
   } else {
-    ChooseMethod(settings, params, &plan);
+    ChooseMethod(settings, &params, &plan);
     read_film_params();
     params.RejectUnused();
   }
@@ -196,7 +199,7 @@ Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, Ph
   const Scene& scene = *plan.scene;
   plan.effects = ComputeEffects(scene);
   if (auto_method) {
-    ChooseMethod(settings, params, &plan);
+    ChooseMethod(settings, &params, &plan);
     read_film_params();
     params.RejectUnused();
   }
@@ -284,12 +287,12 @@ Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, Ph
 
 Plan RebuildPlan(const SceneDescription& desc, const RenderSettings& settings, double clamp, LightSet lights,
                  ReceiverSet receivers) {
-  const OptionMap params = OptionMap::Parse(settings.params);
+  OptionMap params = OptionMap::Parse(settings.params);
   Plan plan;
   ReadPlanMatrixOptions(params, settings, clamp, &plan);
   plan.scene = BuildSceneFor(desc, settings);
   plan.effects = ComputeEffects(*plan.scene);
-  ChooseMethod(settings, params, &plan);
+  ChooseMethod(settings, &params, &plan);
   ApplySharpSplit(settings, &plan);
   *plan.lights = std::move(lights);
   *plan.receivers = std::move(receivers);

@@ -23,7 +23,7 @@
 namespace lightfarm {
 
 struct RenderSettings {
-  std::string method = "brute";  // the library default; the CLI defaults to "auto" (auto_method.h)
+  std::string method = "brute";  // the library default; the CLI defaults to "auto" (method_chooser.h)
   int width = 0, height = 0;  // 0: the scene's Film resolution
   std::string filter;  // overrides the scene's PixelFilter when set
   int spp = 0;  // camera samples per pixel; 0: the method's default (path: the scene's, others: 1)

@@ -2,6 +2,7 @@
 
 #include <cerrno>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 
 namespace lightfarm {
@@ -19,6 +20,10 @@ OptionMap OptionMap::Parse(const std::vector<std::string>& entries) {
   return OptionMap(std::move(values));
 }
 
+void OptionMap::AddMissing(const std::vector<std::string>& entries) {
+  for (const auto& [key, value] : Parse(entries).values_) values_.emplace(key, value);
+}
+
 const std::string* OptionMap::Lookup(const std::string& key) const {
   auto it = values_.find(key);
   if (it == values_.end()) return nullptr;
@@ -26,9 +31,26 @@ const std::string* OptionMap::Lookup(const std::string& key) const {
   return &it->second;
 }
 
+namespace {
+
+// The shortest text that reads back as `v`.
+std::string Exact(double v) {
+  char buf[32];
+  for (int precision = 6; precision <= 17; ++precision) {
+    std::snprintf(buf, sizeof buf, "%.*g", precision, v);
+    if (std::strtod(buf, nullptr) == v) break;
+  }
+  return buf;
+}
+
+}  // namespace
+
 double OptionMap::GetDouble(const std::string& key, double def, double lo, double hi) const {
   const std::string* v = Lookup(key);
-  if (!v) return def;
+  if (!v) {
+    defaults_.emplace(key, Exact(def));
+    return def;
+  }
   errno = 0;
   char* end = nullptr;
   double d = std::strtod(v->c_str(), &end);
@@ -42,7 +64,10 @@ double OptionMap::GetDouble(const std::string& key, double def, double lo, doubl
 
 long long OptionMap::GetInt(const std::string& key, long long def, long long lo, long long hi) const {
   const std::string* v = Lookup(key);
-  if (!v) return def;
+  if (!v) {
+    defaults_.emplace(key, std::to_string(def));
+    return def;
+  }
   errno = 0;
   char* end = nullptr;
   long long i = std::strtoll(v->c_str(), &end, 10);
@@ -56,7 +81,10 @@ long long OptionMap::GetInt(const std::string& key, long long def, long long lo,
 
 bool OptionMap::GetBool(const std::string& key, bool def) const {
   const std::string* v = Lookup(key);
-  if (!v) return def;
+  if (!v) {
+    defaults_.emplace(key, def ? "true" : "false");
+    return def;
+  }
   if (*v == "true" || *v == "1" || *v == "on") return true;
   if (*v == "false" || *v == "0" || *v == "off") return false;
   throw OptionError("--param " + key + "=" + *v + ": expected true or false");
@@ -64,7 +92,11 @@ bool OptionMap::GetBool(const std::string& key, bool def) const {
 
 std::string OptionMap::GetString(const std::string& key, const std::string& def) const {
   const std::string* v = Lookup(key);
-  return v ? *v : def;
+  if (!v) {
+    defaults_.emplace(key, def);
+    return def;
+  }
+  return *v;
 }
 
 void OptionMap::RejectUnused() const {

@@ -12,6 +12,7 @@
 #include "common/evaluation/bench_report.h"
 #include "common/evaluation/bench_run.h"
 #include "common/evaluation/cost_model.h"
+#include "common/render/method_chooser.h"
 #include "common/evaluation/reference.h"
 #include "common/evaluation/truth.h"
 #include "common/image/image_io.h"
@@ -360,21 +361,28 @@ TEST(BenchCostModel, TargetErrorPicksTheCheapestSettingThatReachesItByMedian) {
   s.method = "lightcuts";
   s.lights = 1000;
   s.width = s.height = 20;  // 4x the bench's pixels
-  TargetChoice c = ChooseForTargetError("lightcuts", 0.02, rows, s);
+  const MethodChooser& chooser = MethodChooser::BuiltIn();
+  MethodChoice c = chooser.ForTarget("lightcuts", 0.02, rows, s);
+  EXPECT_EQ(c.basis, ChoiceBasis::kBenchAgainstBrute);
+  EXPECT_TRUE(c.reached);
   EXPECT_EQ(c.setting, "error=0.05");  // median 0.019
   EXPECT_EQ(c.params, std::vector<std::string>{"error=0.05"});
   EXPECT_DOUBLE_EQ(c.estimated_error, 0.019);
   EXPECT_DOUBLE_EQ(c.predicted_s, 4 * 2.1);
-  EXPECT_EQ(ChooseForTargetError("lightcuts", 0.05, rows, s).setting, "error=0.1");
+  EXPECT_EQ(chooser.ForTarget("lightcuts", 0.05, rows, s).setting, "error=0.1");
   // Unreachable: the most accurate, said so.
-  TargetChoice hard = ChooseForTargetError("lightcuts", 0.001, rows, s);
+  MethodChoice hard = chooser.ForTarget("lightcuts", 0.001, rows, s);
   EXPECT_EQ(hard.setting, "error=0.02");
+  EXPECT_FALSE(hard.reached);
   EXPECT_NE(hard.source.find("no setting reached"), std::string::npos);
   // No bench rows for the method: the documented default, no prediction.
-  TargetChoice d = ChooseForTargetError("sparse-completion", 0.02, rows, s);
+  MethodChoice d = chooser.ForTarget("sparse-completion", 0.02, rows, s);
+  EXPECT_EQ(d.basis, ChoiceBasis::kDocumentedDefault);
   EXPECT_EQ(d.setting, "rate=0.1");
   EXPECT_LT(d.predicted_s, 0);
-  EXPECT_THROW(ChooseForTargetError("brute", 0.02, {}, s), OptionError);
+  EXPECT_THROW(chooser.ForTarget("brute", 0.02, {}, s), OptionError);
+  EXPECT_THROW(chooser.ForTarget("auto", 0.02, rows, s), OptionError);  // auto needs a truth
+  EXPECT_THROW(chooser.ForTarget("lightcuts", 0, rows, s), OptionError);
 }
 
 TEST(BenchSweeps, EveryRegisteredMethodWithASweepLineIsSwept) {

@@ -1,9 +1,12 @@
-#include "common/util/bench_csv.h"
+#include "common/util/bench_table.h"
 
+#include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <map>
 #include <sstream>
+#include <tuple>
 #include <stdexcept>
 
 namespace lightfarm {
@@ -36,6 +39,15 @@ std::string Num(double v) {
   return buf;
 }
 
+// The median of the finite values; NaN when there are none.
+double Median(std::vector<double> v) {
+  v.erase(std::remove_if(v.begin(), v.end(), [](double x) { return !std::isfinite(x); }), v.end());
+  if (v.empty()) return std::nan("");
+  std::sort(v.begin(), v.end());
+  const size_t n = v.size();
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
 }  // namespace
 
 std::string BenchCsvHeader() {
@@ -63,6 +75,10 @@ std::string ToCsvLine(const BenchRow& r) {
 std::vector<BenchRow> ReadBenchCsv(const std::string& path) {
   std::ifstream in(path);
   if (!in) throw std::runtime_error("cannot read " + path);
+  return ParseBenchCsv(in, path);
+}
+
+std::vector<BenchRow> ParseBenchCsv(std::istream& in, const std::string& path) {
   std::string line;
   if (!std::getline(in, line)) throw std::runtime_error(path + ": empty, not a lightfarm bench results.csv");
   std::vector<std::string> header;
@@ -128,6 +144,54 @@ std::vector<BenchRow> ReadBenchCsv(const std::string& path) {
     rows.push_back(std::move(r));
   }
   return rows;
+}
+
+std::vector<SettingSummary> Summarize(const std::vector<BenchRow>& rows) {
+  std::vector<SettingSummary> out;
+  std::map<std::tuple<size_t, std::string, std::string>, std::vector<const BenchRow*>> groups;
+  for (const BenchRow& r : rows) {
+    auto key = std::make_tuple(r.lights, r.method, r.setting);
+    if (!groups.count(key)) {
+      SettingSummary s;
+      s.lights = r.lights;
+      s.method = r.method;
+      s.setting = r.setting;
+      out.push_back(s);
+    }
+    groups[key].push_back(&r);
+  }
+  for (SettingSummary& s : out) {
+    const auto& g = groups[std::make_tuple(s.lights, s.method, s.setting)];
+    auto med = [&](double BenchRow::*field) {
+      std::vector<double> v;
+      for (const BenchRow* r : g) v.push_back(r->*field);
+      return Median(v);
+    };
+    s.runs = int(g.size());
+    s.time_s = med(&BenchRow::time_total_s);
+    s.rel_l2 = med(&BenchRow::rel_l2);
+    s.rel_l1 = med(&BenchRow::rel_l1);
+    s.shadow_rays = med(&BenchRow::shadow_rays);
+    s.shadow_rays_per_pixel = med(&BenchRow::shadow_rays_per_pixel);
+    s.elements = med(&BenchRow::elements);
+    s.peak_rss_mb = med(&BenchRow::peak_rss_mb);
+    s.truth_rel_l1 = med(&BenchRow::truth_rel_l1);
+    s.truth_rel_l2 = med(&BenchRow::truth_rel_l2);
+    s.fireflies = med(&BenchRow::fireflies);
+    s.estimated = g.front()->estimated;
+    for (const BenchRow* r : g)
+      if (!r->image.empty()) s.image = r->image;
+  }
+  return out;
+}
+
+std::vector<std::string> SplitParams(const std::string& label) {
+  std::vector<std::string> out;
+  std::stringstream ss(label);
+  std::string item;
+  while (std::getline(ss, item, ','))
+    if (!item.empty()) out.push_back(item);
+  return out;
 }
 
 }  // namespace lightfarm

@@ -1,0 +1,23 @@
+# cmake -DOUT=file.cpp -DSURFACE=a.csv|b.csv -DMEDIA=c.csv|d.csv -P embed_measurements.cmake:
+# writes the bench results the method chooser reads (method_chooser.cpp) as C++ raw string
+# literals, one per results.csv, in null-terminated arrays.
+set(body "// Generated from the bench results under docs/ by embed_measurements.cmake; do not edit.\n")
+string(APPEND body "namespace lightfarm {\n\n")
+foreach(pair "SURFACE:kSurfaceMeasurementsCsv" "MEDIA:kMediaMeasurementsCsv")
+  string(REPLACE ":" ";" parts "${pair}")
+  list(GET parts 0 var)
+  list(GET parts 1 name)
+  string(REPLACE "|" ";" files "${${var}}")
+  string(APPEND body "extern const char* const ${name}[];\nconst char* const ${name}[] = {\n")
+  foreach(f ${files})
+    file(READ "${f}" text)
+    string(FIND "${text}" ")lfbench\"" clash)
+    if(NOT clash EQUAL -1)
+      message(FATAL_ERROR "${f} contains the raw string delimiter )lfbench\"")
+    endif()
+    string(APPEND body "    R\"lfbench(${text})lfbench\",\n")
+  endforeach()
+  string(APPEND body "    nullptr};\n\n")
+endforeach()
+string(APPEND body "}  // namespace lightfarm\n")
+file(WRITE "${OUT}" "${body}")
