@@ -4,12 +4,12 @@
 #include <unistd.h>
 
 #include <filesystem>
-#include <fstream>
+#include <map>
+#include <mutex>
 #include <random>
 #include <thread>
 
 #include "common/farm/render_client.h"
-#include "common/image/image_io.h"
 #include "common/util/error.h"
 #include "common/util/file.h"
 #include "coordinator/services.h"
@@ -49,6 +49,12 @@ EmbeddedRender RenderOnEmbeddedFarm(const std::string& scene_path, const RenderS
   // pausing it.
   copt.min_free_bytes = 0;
   copt.wait_for_space = false;
+  std::mutex result_mu;
+  std::map<std::string, Image> results;  // the latest result of each job
+  copt.on_result = [&](const std::string& job, const Image& image) {
+    std::lock_guard lock(result_mu);
+    results[job] = image;
+  };
   Coordinator coordinator(copt);
   coordinator.Start();
   ServerConfig scfg;
@@ -97,15 +103,16 @@ EmbeddedRender RenderOnEmbeddedFarm(const std::string& scene_path, const RenderS
     }
     v1::JobStatus st = client.Watch(job, progress);
     if (st.state() != v1::JOB_STATE_DONE) throw std::runtime_error(st.error().empty() ? "job did not finish" : st.error());
-    std::string stats;
-    client.Fetch(job, &out.exr, &stats);
-    out.stats = nlohmann::json::parse(stats);
+    // The stats as a fetch serves them (the result blob verified on the way), the image as
+    // the coordinator assembled it.
+    out.stats = nlohmann::json::parse(coordinator.GetResult(job).stats_json);
     out.stats["scene"] = scene_path;
     out.stats["farm"]["workers"] = workers;
     out.stats["farm"]["mode"] = "embedded";
-    const fs::path exr = dir / "result.exr";
-    std::ofstream(exr, std::ios::binary).write(out.exr.data(), std::streamsize(out.exr.size()));
-    out.image = ReadImage(exr.string());
+    std::lock_guard lock(result_mu);
+    const auto found = results.find(job);
+    if (found == results.end()) throw std::runtime_error("job " + job + " is done but handed over no image");
+    out.image = std::move(found->second);
   } catch (...) {
     stop();
     throw;

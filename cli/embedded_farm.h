@@ -1,5 +1,7 @@
 // Embedded mode (`lightfarm render`): a coordinator and N workers in this process, talking over
-// in-process gRPC channels: the same code path as the farm, without sockets.
+// in-process gRPC channels: the same code path as the farm, without sockets. The farm stores its
+// result as always; the caller gets the film's float image in process (no EXR decode) and the
+// stats from the coordinator.
 #pragma once
 
 #include <functional>
@@ -13,7 +15,6 @@
 namespace lightfarm {
 
 struct EmbeddedRender {
-  std::string exr;  // the result as the farm stores it (OpenEXR bytes)
   Image image;
   nlohmann::json stats;
 };

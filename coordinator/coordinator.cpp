@@ -1390,6 +1390,7 @@ void Coordinator::FinishJob(int64_t id, std::shared_ptr<Plan> plan, int final_st
         previous_stats.empty() ? nlohmann::json::object() : nlohmann::json::parse(previous_stats));
     acc = std::move(next);
   }
+  if (options_.on_result) options_.on_result(std::to_string(id), finished.image);
   std::lock_guard lock(mu_);
   auto found = jobs_.find(id);
   if (found == jobs_.end()) return;  // deleted meanwhile

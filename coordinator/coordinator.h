@@ -8,6 +8,7 @@
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
+#include <functional>
 #include <cstdint>
 #include <map>
 #include <memory>
@@ -65,6 +66,11 @@ struct CoordinatorOptions {
   // Start an empty farm on a state directory whose database is missing or empty although it
   // holds blobs (otherwise refused: the jobs those blobs belong to would be forgotten).
   bool fresh_state = false;
+  // Embedded mode (cli/embedded_farm.h): every result the coordinator stores (a job's image,
+  // or a progressive job's mean so far) handed over in process as the film's float image, so
+  // the caller needs no EXR decode. Called on a planner thread, without the scheduler's lock,
+  // after the result is stored and before the job is marked done.
+  std::function<void(const std::string& job_id, const Image& image)> on_result;
 };
 
 class FarmError : public std::runtime_error {

@@ -127,6 +127,7 @@ FinishedJob JobPlanner::Finish(int64_t id, PassOutcome pass) {
   out.tasks = pass.tasks;
   out.attempts = pass.attempts;
   out.result_sha = blobs_.Put(WriteResultExr(pass.image, JobDir(id) + "/result.exr"));
+  out.image = std::move(pass.image);
   out.stats_json = pass.stats.dump(2);
   store_.FinishJob(id, v1::JOB_STATE_DONE, out.result_sha, out.stats_json);
   std::error_code ec;
@@ -175,7 +176,8 @@ FinishedJob JobPlanner::FinishPass(int64_t id, int pass, const PassPlan& passes,
                           {"finished", !out.more_passes}};
   stats["time"]["total_s"] = elapsed;
   out.stats_json = stats.dump(2);
-  out.result_sha = blobs_.Put(WriteResultExr(acc.Mean(), JobDir(id) + "/result.exr"));
+  out.image = acc.Mean();
+  out.result_sha = blobs_.Put(WriteResultExr(out.image, JobDir(id) + "/result.exr"));
   const std::string accum_sha = blobs_.Put(acc.Serialize());
   // The finished pass, its accumulation and the result are recorded in one step before the next
   // pass starts: a restarted coordinator resumes at the next pass with every finished one.

@@ -50,6 +50,7 @@ struct PassOutcome {
 };
 
 struct FinishedJob {
+  Image image;  // the result stored as result_sha (a progressive job: the mean of its passes)
   std::string result_sha, stats_json;
   uint64_t tasks = 0, attempts = 0;
   bool more_passes = false;  // a progressive job goes on with its next pass
