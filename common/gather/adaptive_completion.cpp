@@ -89,6 +89,7 @@
 
 #include "common/gather/methods.h"
 #include "common/matrix/column_completion.h"
+#include "common/util/check.h"
 #include "common/util/rng.h"
 
 namespace lightfarm {
@@ -692,7 +693,7 @@ class AdaptiveCompletionGather final : public GatherMethod {
 
   TaskOutput RunTask(const GatherContext& ctx, const SubMatrixTask& task,
                      const StageArtifact&) const override {
-    if (!ctx.tree) throw std::logic_error("adaptive-completion: the plan has no light tree");
+    CHECK(ctx.tree != nullptr);  // the plan builds the tree for methods that need one
     TaskOutput result;
     result.row_sums.resize(task.rows.size());
     if (task.rows.empty() || ctx.tree->roots().empty()) return result;

@@ -58,6 +58,7 @@
 
 #include "common/gather/methods.h"
 #include "common/matrix/nmf_completion.h"
+#include "common/util/check.h"
 #include "common/util/rng.h"
 
 namespace lightfarm {
@@ -204,7 +205,7 @@ class SparseCompletionGather final : public GatherMethod {
 
   TaskOutput RunTask(const GatherContext& ctx, const SubMatrixTask& task,
                      const StageArtifact&) const override {
-    if (!ctx.tree) throw std::logic_error("sparse-completion: the plan has no light tree");
+    CHECK(ctx.tree != nullptr);  // the plan builds the tree for methods that need one
     const LightTree& tree = *ctx.tree;
     const LightingMatrix& matrix = ctx.matrix;
     const LightSet& lights = matrix.lights();

@@ -1,8 +1,8 @@
 #include "common/matrix/column_completion.h"
 
 #include <cmath>
-#include <stdexcept>
-#include <string>
+
+#include "common/util/check.h"
 
 namespace lightfarm {
 
@@ -16,15 +16,11 @@ Eigen::VectorXd FiniteOrZero(const Eigen::VectorXd& v) {
 
 ColumnCompletion::ColumnCompletion(size_t length, const ColumnCompletionOptions& options)
     : options_(options), basis_(Eigen::Index(length), 0), basis_sums_(0) {
-  if (!(options.drop_tolerance >= 0) || !(options.rank_tolerance >= 0))
-    throw std::invalid_argument("ColumnCompletion: tolerances must be nonnegative");
+  CHECK(options.drop_tolerance >= 0 && options.rank_tolerance >= 0);
 }
 
 void ColumnCompletion::SetObserved(std::vector<uint32_t> indices) {
-  for (uint32_t i : indices)
-    if (i >= length())
-      throw std::invalid_argument("ColumnCompletion: observed index " + std::to_string(i) +
-                                  " outside a column of length " + std::to_string(length()));
+  for (uint32_t i : indices) CHECK_LT(size_t(i), length());
   observed_ = std::move(indices);
   factored_ = false;
   // Ω = every entry once, in order: U_Ω = U, orthonormal, and the least squares is Uᵀl
@@ -33,8 +29,7 @@ void ColumnCompletion::SetObserved(std::vector<uint32_t> indices) {
 }
 
 bool ColumnCompletion::Add(const Eigen::VectorXd& column) {
-  if (column.size() != basis_.rows())
-    throw std::invalid_argument("ColumnCompletion::Add: column of the wrong length");
+  CHECK_EQ(column.size(), basis_.rows());
   if (!column.allFinite()) return false;
   const double norm = column.stableNorm();
   if (!(norm > 0)) return false;
@@ -74,8 +69,7 @@ void ColumnCompletion::Factor() const {
 }
 
 ColumnProjection ColumnCompletion::Project(const Eigen::VectorXd& observed_values) const {
-  if (size_t(observed_values.size()) != observed_.size())
-    throw std::invalid_argument("ColumnCompletion::Project: values do not match Ω");
+  CHECK_EQ(size_t(observed_values.size()), observed_.size());  // one value per index of Ω
   Factor();
   const Eigen::VectorXd values = FiniteOrZero(observed_values);
   ColumnProjection p;
@@ -103,20 +97,17 @@ ColumnProjection ColumnCompletion::Project(const Eigen::VectorXd& observed_value
 }
 
 Eigen::VectorXd ColumnCompletion::ProjectFull(const Eigen::VectorXd& column) const {
-  if (column.size() != basis_.rows())
-    throw std::invalid_argument("ColumnCompletion::ProjectFull: column of the wrong length");
+  CHECK_EQ(column.size(), basis_.rows());
   return basis_.transpose() * FiniteOrZero(column);
 }
 
 Eigen::VectorXd ColumnCompletion::Reconstruct(const Eigen::VectorXd& coefficients) const {
-  if (coefficients.size() > basis_.cols())
-    throw std::invalid_argument("ColumnCompletion::Reconstruct: more coefficients than U has");
+  CHECK_LE(coefficients.size(), basis_.cols());
   return basis_.leftCols(coefficients.size()) * coefficients;
 }
 
 double ColumnCompletion::ReconstructedSum(const Eigen::VectorXd& coefficients) const {
-  if (coefficients.size() > basis_sums_.size())
-    throw std::invalid_argument("ColumnCompletion::ReconstructedSum: more coefficients than U has");
+  CHECK_LE(coefficients.size(), basis_sums_.size());
   return basis_sums_.head(coefficients.size()).dot(coefficients);
 }
 

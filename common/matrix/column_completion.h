@@ -62,7 +62,7 @@ class ColumnCompletion {
   const std::vector<uint32_t>& observed() const { return observed_; }
 
   // Sets Ω (entry indices < length; repeats allowed, order defines the order of l_Ω).
-  // Throws std::invalid_argument for an index outside the column.
+  // An index outside the column is a broken invariant (CHECK).
   void SetObserved(std::vector<uint32_t> indices);
 
   // Adds the part of `column` (length()) orthogonal to U, normalised. Returns false (U

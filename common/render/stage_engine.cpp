@@ -1,6 +1,6 @@
 #include "common/render/stage_engine.h"
 
-#include <stdexcept>
+#include "common/util/check.h"
 
 namespace lightfarm {
 
@@ -13,7 +13,7 @@ std::vector<SubMatrixTask> StageEngine::Tasks(int stage, const StageArtifact& pr
 }
 
 StageArtifact StageEngine::Combine(int stage, const std::vector<TaskOutput>& outputs) const {
-  if (is_final(stage)) throw std::logic_error("the final stage is not combined: its outputs are the image");
+  CHECK(!is_final(stage));  // the final stage is not combined: its outputs are the image
   return plan_.method->Combine(stage, plan_.context(), outputs);
 }
 
