@@ -35,7 +35,7 @@ extern "C" void OnInterrupt(int) {
 }
 
 struct BenchArgs {
-  std::string scene, out_dir, methods, settings, lights = "10000", resolution, filter, cache_dir, truth;
+  std::string scene, out_dir, methods, settings, lights = std::to_string(kDefaultLights), resolution, filter, cache_dir, truth;
   double truth_noise = 0.01, truth_max_seconds = 3600;
   std::vector<std::string> params;
   int spp = 1, repeats = 3, threads = 0;

@@ -16,13 +16,16 @@ void AddRenderOptions(CLI::App* cmd, RenderOptionArgs& a) {
       ->check(CLI::IsMember({"box", "triangle", "gaussian", "mitchell", "sinc"}));
   cmd->add_option("--spp", a.spp, "Camera samples per pixel (default: path the scene's Sampler pixelsamples, other methods 1)")
       ->check(CLI::Range(1, 4096));
-  cmd->add_option("--lights", a.lights, "Number of virtual lights")->check(CLI::Range(1LL, 100000000LL));
+  cmd->add_option("--lights", a.lights,
+                  "Number of virtual lights (default " + std::to_string(kDefaultLights) +
+                      ", or what --target-error or auto against a bench chooses)")->check(CLI::Range(1LL, 100000000LL));
   // Without the check CLI11 wraps a negative number into a huge unsigned seed.
   cmd->add_option("--seed", a.seed, "Random seed")->check(CLI::NonNegativeNumber);
   cmd->add_option("--param", a.params, "Method/renderer parameter KEY=VALUE (repeatable)");
   cmd->add_option("--passes", a.passes,
                   "Progressive reference: render N passes, each with its own seed, and average them "
-                  "(with --until-noise or --time-limit: at most N; default 10000)")
+                  "(with --until-noise or --time-limit: at most N; default " +
+                      std::to_string(PassPlan::kDefaultMaxPasses) + ")")
       ->check(CLI::Range(1u, 1000000u));
   cmd->add_option("--until-noise", a.until_noise,
                   "Progressive reference: stop once the relative standard error of the image mean and of "
@@ -50,14 +53,12 @@ RenderSettings ToRenderSettings(const RenderOptionArgs& a) {
   }
   s.filter = a.filter;
   s.spp = a.spp;
-  s.lights = a.lights > 0 ? size_t(a.lights) : 10000;
+  s.lights = a.lights > 0 ? size_t(a.lights) : kDefaultLights;
   s.seed = a.seed;
   s.params = a.params;
   s.progressive.until_noise = a.until_noise;
   s.progressive.time_limit_s = a.time_limit_s;
-  s.progressive.passes = a.passes > 0 ? a.passes
-                         : a.until_noise > 0 || a.time_limit_s > 0 ? PassPlan::kDefaultMaxPasses
-                                                                    : 1;
+  s.progressive.passes = PassPlan::PassesFor(a.passes, s.progressive);
   return s;
 }
 

@@ -14,7 +14,7 @@ struct RenderOptionArgs {
   std::string resolution;
   std::string filter;
   int spp = 0;  // 0: the method's default (path: the scene's pixelsamples, others: 1)
-  long long lights = 0;  // 0: not given (10000, or a --target-error / auto choice)
+  long long lights = 0;  // 0: not given (kDefaultLights, or a --target-error / auto choice)
   unsigned long long seed = 0;
   std::vector<std::string> params;
   // A progressive job (progressive.h): 0 / 0 / 0 is one ordinary pass.

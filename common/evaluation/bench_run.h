@@ -22,7 +22,7 @@ struct BenchOptions {
   std::string out_dir;
   std::vector<std::string> methods;   // empty: every registered method with a sweep
   std::string settings;               // non-empty: this sweep ("a=1;a=2") for the one method
-  std::vector<size_t> lights = {10000};
+  std::vector<size_t> lights = {kDefaultLights};
   int width = 0, height = 0;          // 0: the scene's Film
   int spp = 1;
   uint64_t seed = 0;

@@ -29,16 +29,14 @@ RenderSettings FromProto(const v1::RenderSettings& p) {
   s.height = p.height();
   s.filter = p.filter();
   s.spp = p.spp();  // 0: the method's default
-  s.lights = p.lights() == 0 ? 10000 : size_t(p.lights());
+  s.lights = p.lights() == 0 ? kDefaultLights : size_t(p.lights());
   s.seed = p.seed();
   s.params.assign(p.params().begin(), p.params().end());
   s.method_rule = p.method_rule();
   s.verify = p.verify();
   s.progressive.until_noise = p.until_noise();
   s.progressive.time_limit_s = p.time_limit_s();
-  s.progressive.passes = p.passes() > 0 ? p.passes()
-                         : p.until_noise() > 0 || p.time_limit_s() > 0 ? PassPlan::kDefaultMaxPasses
-                                                                        : 1;
+  s.progressive.passes = PassPlan::PassesFor(p.passes(), s.progressive);
   return s;
 }
 

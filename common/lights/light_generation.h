@@ -17,8 +17,11 @@ enum class MediumLights : uint8_t {
   kVRL,   // a kVRL per free flight through a medium (Novák 2012)
 };
 
+// Virtual lights a render makes when it is not told (--lights, a request without a count).
+inline constexpr size_t kDefaultLights = 10000;
+
 struct LightGenerationOptions {
-  size_t target_lights = 10000;  // total virtual lights wanted (a target; see below)
+  size_t target_lights = kDefaultLights;  // total virtual lights wanted (a target; see below)
   // Share of the budget spent on the emitters themselves (area lights, environment); the rest
   // goes to indirect VPLs from particle tracing. With maxdepth <= 1 everything is direct.
   float direct_fraction = 0.5f;

@@ -25,6 +25,12 @@ struct PassPlan {
   static constexpr uint32_t kMinNoisePasses = 4;
 
   bool progressive() const { return passes > 1 || until_noise > 0 || time_limit_s > 0; }
+  // The passes a request asks for: `requested` when given (> 0), else kDefaultMaxPasses for a
+  // job with a target (`targets`' until_noise or time_limit_s), else 1.
+  static uint32_t PassesFor(uint32_t requested, const PassPlan& targets) {
+    if (requested > 0) return requested;
+    return targets.until_noise > 0 || targets.time_limit_s > 0 ? kDefaultMaxPasses : 1;
+  }
 };
 
 // The seed of pass `pass` of a job seeded `seed`: pass 0 is the job's own seed (one pass equals

@@ -27,7 +27,7 @@ struct RenderSettings {
   int width = 0, height = 0;  // 0: the scene's Film resolution
   std::string filter;  // overrides the scene's PixelFilter when set
   int spp = 0;  // camera samples per pixel; 0: the method's default (path: the scene's, others: 1)
-  size_t lights = 10000;
+  size_t lights = kDefaultLights;
   uint64_t seed = 0;
   std::vector<std::string> params;  // KEY=VALUE (--param)
   // Why the client chose `method` when it resolved `auto` itself (a bench model against the
