@@ -91,7 +91,9 @@ size_t StoredBlobs(const std::string& blob_dir, size_t limit) {
 
 }  // namespace
 
-Coordinator::Coordinator(CoordinatorOptions options) : options_(std::move(options)) {
+Coordinator::Coordinator(CoordinatorOptions options)
+    : options_(std::move(options)),
+      storage_(options_.state_dir, options_.min_free_bytes, options_.wait_for_space, &counters_.storage_full) {
   if (options_.state_dir.empty()) throw std::invalid_argument("coordinator: --state-dir is required");
   fs::create_directories(options_.state_dir);
   // A database that is gone or empty beside a store of blobs is a lost database, not a new
@@ -206,7 +208,7 @@ std::vector<std::string> Coordinator::FindMissingBlobs(const std::vector<std::st
 
 std::string Coordinator::Submit(const v1::SubmitJobRequest& req) {
   if (draining_) throw FarmError(Code::kUnavailable, "coordinator is shutting down; submit again later");
-  if (storage_full_ || StorageLow()) throw FarmError(Code::kResourceExhausted, StorageFullMessage());
+  if (storage_.full() || storage_.Low()) throw FarmError(Code::kResourceExhausted, storage_.FullMessage());
   // From the check that its files are stored to the job's insertion, no collection runs.
   std::lock_guard gc(gc_mu_);
   // Validate the manifest: every file uploaded, every path inside the scene directory.
@@ -272,8 +274,8 @@ std::string Coordinator::Submit(const v1::SubmitJobRequest& req) {
   try {
     job.id = store_->InsertJob(r);
   } catch (const StorageFull& e) {
-    NoteStorageFull(e.what());
-    throw FarmError(Code::kResourceExhausted, StorageFullMessage());
+    storage_.NoteFull(e.what());
+    throw FarmError(Code::kResourceExhausted, storage_.FullMessage());
   }
   job.name = req.name();
   job.priority = req.priority();
@@ -283,7 +285,7 @@ std::string Coordinator::Submit(const v1::SubmitJobRequest& req) {
   if (job.passes.progressive()) job.acc = std::make_shared<const PassAccumulator>();
   const int64_t id = job.id;
   jobs_.emplace(id, std::move(job));
-  ++m_submitted_;
+  ++counters_.submitted;
   spdlog::info("job {}: submitted ({}, {} files)", id, s.method(), m.files_size());
   MaybeStartPlanningLocked();
   return std::to_string(id);
@@ -323,11 +325,9 @@ v1::JobStatus Coordinator::StatusLocked(const Job& job) const {
   if (job.state == v1::JOB_STATE_RUNNING || job.state == v1::JOB_STATE_PLANNING) {
     const auto now = Clock::now();
     st.set_elapsed_s(Seconds(now - job.started));
-    const size_t done_here = job.tasks_done - std::min(job.tasks_done, job.done_at_stage_start);
-    if (job.state == v1::JOB_STATE_RUNNING && done_here > 0 && job.stage + 1 == job.stage_count) {
-      const double per_task = Seconds(now - job.stage_started) / double(done_here);
-      st.set_eta_s(per_task * double(job.tasks.size() - job.tasks_done));
-    }
+    if (job.state == v1::JOB_STATE_RUNNING)
+      st.set_eta_s(StageEtaSeconds(job.tasks_done, job.tasks.size(), job.done_at_stage_start,
+                                   job.stage + 1 == job.stage_count, Seconds(now - job.stage_started)));
   } else if (job.state == v1::JOB_STATE_DONE) {
     st.set_eta_s(0);
   }
@@ -338,8 +338,8 @@ v1::JobStatus Coordinator::StatusLocked(const Job& job) const {
   for (const v1::SceneFile& f : job.manifest.files())
     if (f.path() == job.manifest.root()) st.set_scene_sha256(f.sha256());
   if (job.passes.progressive()) ProgressiveStatus(job, &st);
-  if (!IsTerminal(job.state) && storage_full_)
-    st.set_waiting(StorageFullMessage());
+  if (!IsTerminal(job.state) && storage_.full())
+    st.set_waiting(storage_.FullMessage());
   else
     st.set_waiting(WaitingReasonLocked(job));
   return st;
@@ -353,20 +353,7 @@ void Coordinator::ProgressiveStatus(const Job& job, v1::JobStatus* st) const {
   st->set_noise_rel_stderr(std::isfinite(job.noise.rel_stderr) ? job.noise.rel_stderr : -1);
   st->set_noise_p90_rel_stderr(std::isfinite(job.noise.p90_rel_stderr) ? job.noise.p90_rel_stderr : -1);
   if (IsTerminal(job.state) || done == 0) return;  // the first pass's ETA is the stage's (above)
-  // Passes left: to the most allowed, or to the noise target at its 1/√N rate; the time limit
-  // caps their time. The running pass has already used some of it.
-  double pass_s = 0;
-  for (double t : job.acc->pass_seconds()) pass_s += t;
-  const double mean_pass_s = pass_s / double(done);
-  double left = double(job.passes.passes - std::min(done, job.passes.passes));
-  if (job.passes.until_noise > 0) {
-    const uint32_t to_target = PassesToReach(job.noise, done, job.passes.until_noise);
-    const uint32_t floor_left = PassPlan::kMinNoisePasses - std::min(done, PassPlan::kMinNoisePasses);
-    left = std::min(left, double(std::max(to_target == UINT32_MAX ? uint32_t(left) : to_target, floor_left)));
-  }
-  double eta = left * mean_pass_s;
-  if (job.passes.time_limit_s > 0) eta = std::min(eta, std::max(0.0, job.passes.time_limit_s - pass_s) + mean_pass_s);
-  st->set_eta_s(std::max(0.0, eta - Seconds(Clock::now() - job.pass_started)));
+  st->set_eta_s(PassesEtaSeconds(job.passes, *job.acc, job.noise, Seconds(Clock::now() - job.pass_started)));
 }
 
 v1::JobStatus Coordinator::GetJob(const std::string& job_id) {
@@ -551,7 +538,7 @@ std::string Coordinator::RegisterWorker(const std::string& name, uint32_t protoc
     store_->UpsertWorker({id, name, software_version, threads});
   } catch (const StorageFull& e) {
     // Only the dashboard's memory of the worker is durable: it works unrecorded meanwhile.
-    NoteStorageFull(e.what());
+    storage_.NoteFull(e.what());
   }
   std::lock_guard lock(mu_);
   workers_[id] = WorkerInfo{name, software_version, threads};
@@ -604,7 +591,7 @@ Coordinator::Task* Coordinator::FindTaskLocked(const LeaseRef& ref, Job** job_ou
 }
 
 LeaseGrant Coordinator::Lease(const std::string& worker_id) {
-  ++m_lease_polls_;
+  ++counters_.lease_polls;
   std::lock_guard lock(mu_);
   if (!workers_.count(worker_id))
     throw FarmError(Code::kNotFound, "unknown worker " + worker_id + "; register again");
@@ -614,7 +601,7 @@ LeaseGrant Coordinator::Lease(const std::string& worker_id) {
   if (!worker.blocklisted.empty())
     throw FarmError(Code::kFailedPrecondition, "this worker is blocklisted on this farm: " + worker.blocklisted);
   LeaseGrant grant;
-  if (draining_ || stopping_ || storage_full_) return grant;  // a full disk: no new work until space returns
+  if (draining_ || stopping_ || storage_.full()) return grant;  // a full disk: no new work until space returns
   // Highest priority first, then the oldest job; within a job the lowest task id.
   Job* best = nullptr;
   size_t best_task = 0;
@@ -668,10 +655,10 @@ LeaseGrant Coordinator::Lease(const std::string& worker_id) {
     task.worker.clear();
     --task.attempts;
     --job.attempts_total;
-    NoteStorageFull(e.what());
+    storage_.NoteFull(e.what());
     return grant;
   }
-  ++m_leases_;
+  ++counters_.leases;
   grant.has_task = true;
   grant.lease_id = std::to_string(job.id) + "." + std::to_string(job.stage) + "." +
                    std::to_string(best_task) + "." + std::to_string(task.attempt_row);
@@ -718,7 +705,7 @@ bool Coordinator::Complete(const std::string& worker_id, const std::string& leas
     Job* job = nullptr;
     Task* task = FindTaskLocked(ref, &job);
     if (!task || task->state == TaskStateCode::kDone) {
-      ++m_duplicates_;
+      ++counters_.duplicates;
       return false;  // a duplicate or stale completion: harmless
     }
     if (!workers_[worker_id].blocklisted.empty())
@@ -753,9 +740,9 @@ bool Coordinator::Complete(const std::string& worker_id, const std::string& leas
   }
   std::string sha;
   const auto storage_full = [&](const StorageFull& e) {
-    NoteStorageFull(e.what());
+    storage_.NoteFull(e.what());
     // UNAVAILABLE: the worker keeps the result and delivers it again.
-    return FarmError(Code::kUnavailable, "the coordinator cannot store the result now: " + StorageFullMessage());
+    return FarmError(Code::kUnavailable, "the coordinator cannot store the result now: " + storage_.FullMessage());
   };
   try {
     if (problem.empty()) sha = blobs_->Put(bytes);
@@ -770,7 +757,7 @@ bool Coordinator::Complete(const std::string& worker_id, const std::string& leas
   Job* job = nullptr;
   Task* task = FindTaskLocked(ref, &job);
   if (!task || task->state == TaskStateCode::kDone) {
-    ++m_duplicates_;
+    ++counters_.duplicates;
     return false;
   }
   if (!problem.empty()) {
@@ -786,7 +773,7 @@ bool Coordinator::Complete(const std::string& worker_id, const std::string& leas
   if (task->verify && !task->verified) {
     if (std::any_of(task->candidates.begin(), task->candidates.end(),
                     [&](const auto& c) { return c.first == worker_id; })) {
-      ++m_duplicates_;
+      ++counters_.duplicates;
       return false;
     }
     task->candidates.emplace_back(worker_id, sha);
@@ -806,20 +793,20 @@ bool Coordinator::Complete(const std::string& worker_id, const std::string& leas
         return true;
       }
       if (task->candidates.size() == 2) {
-        ++m_mismatches_;
+        ++counters_.mismatches;
         spdlog::warn("{}: the results of workers {} differ; a third worker decides", what, who);
       }
       try {
         if (task->attempt_row) store_->EndAttempt(task->attempt_row, "done: awaiting verification");
       } catch (const StorageFull& e) {
-        NoteStorageFull(e.what());
+        storage_.NoteFull(e.what());
       }
       task->state = TaskStateCode::kPending;
       task->worker.clear();
       job->next_pending = std::min<size_t>(job->next_pending, ref.task);
       ++worker.tasks_done;
       ++job->completions_total;
-      ++m_completed_;
+      ++counters_.completed;
       return true;
     }
     for (const auto& c : task->candidates)
@@ -828,7 +815,7 @@ bool Coordinator::Complete(const std::string& worker_id, const std::string& leas
     task->verified = true;
     task->candidates.clear();
     ++job->tasks_verified;
-    ++m_verified_;
+    ++counters_.verified;
   }
   try {
     store_->RecordCompletion(job->id,
@@ -844,7 +831,7 @@ bool Coordinator::Complete(const std::string& worker_id, const std::string& leas
   ++worker.tasks_done;
   ++job->tasks_done;
   ++job->completions_total;
-  ++m_completed_;
+  ++counters_.completed;
   const int64_t id = job->id;
   for (const std::string& liar : outvoted)
     BlocklistLocked(liar, "its result for task " + std::to_string(ref.task) + " of stage " + std::to_string(ref.stage) +
@@ -874,7 +861,7 @@ void Coordinator::Fail(const std::string& worker_id, const std::string& lease_id
     try {
       if (task->attempt_row) store_->EndAttempt(task->attempt_row, "handed back: " + reason);
     } catch (const StorageFull& e) {
-      NoteStorageFull(e.what());  // the attempt's row stays open; the task is pending all the same
+      storage_.NoteFull(e.what());  // the attempt's row stays open; the task is pending all the same
     }
     return;
   }
@@ -884,7 +871,7 @@ void Coordinator::Fail(const std::string& worker_id, const std::string& lease_id
 void Coordinator::RecordFailureLocked(Job& job, uint32_t task_id, const std::string& worker,
                                       const std::string& reason) {
   Task& task = job.tasks[task_id];
-  ++m_failed_;
+  ++counters_.failed;
   if (auto w = workers_.find(worker); w != workers_.end()) ++w->second.tasks_failed;
   ++task.failures;
   task.last_error = reason;
@@ -898,7 +885,7 @@ void Coordinator::RecordFailureLocked(Job& job, uint32_t task_id, const std::str
     store_->UpdateTask(job.id, TaskRecord{job.stage, int(task_id), int(task.state), task.attempts,
                                           task.failures, task.result_sha, task.last_error});
   } catch (const StorageFull& e) {
-    NoteStorageFull(e.what());  // the failure counts in memory; a restart forgets it, which is safe
+    storage_.NoteFull(e.what());  // the failure counts in memory; a restart forgets it, which is safe
   }
   if (++job.worker_failures[worker] == options_.max_attempts)
     spdlog::warn("job {}: worker {} failed {} tasks and is kept off this job", job.id, worker,
@@ -912,7 +899,7 @@ void Coordinator::RecordFailureLocked(Job& job, uint32_t task_id, const std::str
 
 void Coordinator::ExpireLocked(Job& job, uint32_t task_id) {
   Task& task = job.tasks[task_id];
-  ++m_expired_;
+  ++counters_.expired;
   ++task.expiries;
   const std::string reason = "lease expired: worker " + task.worker + " sent no heartbeat for " +
                              std::to_string(options_.lease_timeout_s) + " s";
@@ -922,7 +909,7 @@ void Coordinator::ExpireLocked(Job& job, uint32_t task_id) {
   try {
     if (task.attempt_row) store_->EndAttempt(task.attempt_row, "expired");
   } catch (const StorageFull& e) {
-    NoteStorageFull(e.what());
+    storage_.NoteFull(e.what());
   }
   spdlog::warn("job {}: task {} of stage {}: {}", job.id, task_id, job.stage, reason);
   if (task.expiries >= 3 * options_.max_attempts)
@@ -985,7 +972,7 @@ void Coordinator::FailJobLocked(Job& job, const std::string& error) {
   try {
     store_->SetJobState(job.id, job.state, error);
   } catch (const StorageFull& e) {
-    NoteStorageFull(e.what());  // unrecorded: a restarted coordinator plans the job again
+    storage_.NoteFull(e.what());  // unrecorded: a restarted coordinator plans the job again
   }
   spdlog::warn("job {}: failed: {}", job.id, error);
   MaybeStartPlanningLocked();
@@ -1029,7 +1016,7 @@ void Coordinator::RepairLocked(Job& job, const std::string& sha, const std::stri
     for (const TaskRecord& r : store_->LoadAllTasks(job.id))
       if (r.result_sha == sha) stage = std::min(stage, r.stage);
   } catch (const StorageFull& e) {
-    NoteStorageFull(e.what());
+    storage_.NoteFull(e.what());
   }
   if (++job.repairs > 3 * options_.max_attempts) {
     FailJobLocked(job, "its blobs were found corrupted " + std::to_string(job.repairs) +
@@ -1040,13 +1027,13 @@ void Coordinator::RepairLocked(Job& job, const std::string& sha, const std::stri
 }
 
 void Coordinator::RecomputeFromLocked(Job& job, int stage, const std::string& why) {
-  ++m_repairs_;
+  ++counters_.repairs;
   spdlog::warn("job {}: {}; recomputing it from stage {}", job.id, why, stage);
   try {
     store_->SetJobStage(job.id, stage);
     store_->SetJobState(job.id, v1::JOB_STATE_PLANNING, "");
   } catch (const StorageFull& e) {
-    NoteStorageFull(e.what());
+    storage_.NoteFull(e.what());
   }
   job.state = v1::JOB_STATE_PLANNING;
   job.stage = stage;
@@ -1092,7 +1079,7 @@ void Coordinator::BlocklistLocked(const std::string& liar, const std::string& re
   try {
     store_->SetWorkerBlocklisted(liar, reason);
   } catch (const StorageFull& e) {
-    NoteStorageFull(e.what());
+    storage_.NoteFull(e.what());
   }
   for (auto& [id, job] : jobs_) {
     if (IsTerminal(job.state)) continue;
@@ -1133,7 +1120,7 @@ void Coordinator::BlocklistLocked(const std::string& liar, const std::string& re
         job.next_pending = std::min<size_t>(job.next_pending, size_t(t));
       }
     } catch (const StorageFull& e) {
-      NoteStorageFull(e.what());
+      storage_.NoteFull(e.what());
     }
   }
 }
@@ -1141,7 +1128,7 @@ void Coordinator::BlocklistLocked(const std::string& liar, const std::string& re
 // --- planning and stages --------------------------------------------------------------------------
 
 void Coordinator::MaybeStartPlanningLocked() {
-  if (stopping_ || storage_full_) return;
+  if (stopping_ || storage_.full()) return;
   int active = 0;
   for (const auto& [id, j] : jobs_)
     active += j.state == v1::JOB_STATE_PLANNING || j.state == v1::JOB_STATE_RUNNING;
@@ -1153,7 +1140,7 @@ void Coordinator::MaybeStartPlanningLocked() {
     try {
       store_->SetJobState(next->id, v1::JOB_STATE_PLANNING, "");
     } catch (const StorageFull& e) {
-      NoteStorageFull(e.what());
+      storage_.NoteFull(e.what());
       return;
     }
     next->state = v1::JOB_STATE_PLANNING;
@@ -1189,8 +1176,8 @@ void Coordinator::PlanJob(int64_t id) {
     if (job.state == v1::JOB_STATE_PLANNING) RepairLocked(job, e.sha256(), e.what());
     return;
   } catch (const std::exception& e) {
-    const bool storage = IsStorageFault(e);
-    if (storage) NoteStorageFull(e.what());
+    const bool storage = storage_.IsFault(e);
+    if (storage) storage_.NoteFull(e.what());
     std::lock_guard lock(mu_);
     auto found = jobs_.find(id);
     if (found == jobs_.end()) return;  // deleted meanwhile
@@ -1239,7 +1226,7 @@ void Coordinator::PlanJob(int64_t id) {
   try {
     store_->SetJobState(id, job.state, "");
   } catch (const StorageFull& e) {
-    NoteStorageFull(e.what());  // the store says PLANNING: a restart plans it again, which is safe
+    storage_.NoteFull(e.what());  // the store says PLANNING: a restart plans it again, which is safe
   }
   spdlog::info("job {}: stage {} ({}) has {} tasks, {} done", id, stage, job.stage_name,
                job.tasks.size(), job.tasks_done);
@@ -1327,8 +1314,8 @@ void Coordinator::AdvanceStage(int64_t id) {
     Job& job = found->second;
     if (!IsTerminal(job.state)) RepairLocked(job, e.sha256(), e.what());
   } catch (const std::exception& e) {
-    const bool storage = IsStorageFault(e);
-    if (storage) NoteStorageFull(e.what());
+    const bool storage = storage_.IsFault(e);
+    if (storage) storage_.NoteFull(e.what());
     std::lock_guard lock(mu_);
     auto found = jobs_.find(id);
     if (found == jobs_.end()) return;  // deleted meanwhile
@@ -1419,7 +1406,7 @@ void Coordinator::FinishJob(int64_t id, std::shared_ptr<Plan> plan, int final_st
       try {
         store_->SetJobState(id, job.state, "");
       } catch (const StorageFull& e) {
-        NoteStorageFull(e.what());
+        storage_.NoteFull(e.what());
       }
       planner_->Submit([this, id] { PlanJob(id); });
       return;
@@ -1443,7 +1430,7 @@ void Coordinator::Delete(const std::string& job_id) {
     store_->DeleteJob(id);  // first: a full disk refuses the delete and changes nothing
     if (!IsTerminal(job.state)) spdlog::info("job {}: cancelled to be deleted", id);
     jobs_.erase(id);  // planning in flight finds it gone and stops; stale leases are NOT_FOUND
-    ++m_deleted_;
+    ++counters_.deleted;
     spdlog::info("job {}: deleted", id);
     MaybeStartPlanningLocked();
   }
@@ -1482,8 +1469,8 @@ size_t Coordinator::CollectGarbage() {
     bytes += blobs_->Remove(e.sha256);
     ++removed;
   }
-  m_gc_removed_ += removed;
-  m_gc_removed_bytes_ += bytes;
+  counters_.gc_removed += removed;
+  counters_.gc_removed_bytes += bytes;
   if (removed) spdlog::info("blob store: collected {} blobs no job uses ({} MiB)", removed, bytes >> 20);
   return removed;
 }
@@ -1510,7 +1497,7 @@ void Coordinator::ApplyRetention() {
 
 void Coordinator::ScrubStep(uint64_t bytes) {
   if (scrub_next_ >= scrub_queue_.size()) {
-    if (!scrub_queue_.empty()) ++m_scrub_passes_;
+    if (!scrub_queue_.empty()) ++counters_.scrub_passes;
     scrub_queue_.clear();
     for (const BlobStore::Entry& e : blobs_->List()) scrub_queue_.push_back(e.sha256);
     std::sort(scrub_queue_.begin(), scrub_queue_.end());
@@ -1525,7 +1512,7 @@ void Coordinator::ScrubStep(uint64_t bytes) {
     const uint64_t corrupted = blobs_->corrupted();
     if (!blobs_->Verify(sha) && blobs_->corrupted() > corrupted) OnBlobCorrupted(sha);  // quarantined: made again
   }
-  m_scrubbed_bytes_ += done;
+  counters_.scrubbed_bytes += done;
 }
 
 void Coordinator::UpkeepLoop() {
@@ -1551,68 +1538,8 @@ void Coordinator::UpkeepLoop() {
 
 // --- storage ---------------------------------------------------------------------------------------
 
-bool Coordinator::StorageLow() const {
-  std::error_code ec;
-  const fs::space_info space = fs::space(options_.state_dir, ec);
-  return !ec && space.available < options_.min_free_bytes;
-}
-
-std::string Coordinator::StorageFullMessage() const {
-  std::error_code ec;
-  const fs::space_info space = fs::space(options_.state_dir, ec);
-  std::string what;
-  {
-    std::lock_guard lock(storage_mu_);
-    what = storage_full_what_;
-  }
-  std::ostringstream os;
-  os << "the coordinator's disk is full (";
-  if (!ec) os << (space.available >> 20) << " MiB free under " << options_.state_dir << "; ";
-  os << "new work needs " << (options_.min_free_bytes >> 20) << " MiB, --min-free-mb)";
-  if (!what.empty()) os << ": " << what;
-  os << ". Accepted jobs wait and resume when space returns";
-  return os.str();
-}
-
-void Coordinator::NoteStorageFull(const std::string& what) {
-  if (!options_.wait_for_space) {
-    spdlog::error("state directory {} is full: {}", options_.state_dir, what);
-    return;
-  }
-  {
-    std::lock_guard lock(storage_mu_);
-    storage_full_what_ = what;
-  }
-  if (!storage_full_.exchange(true)) {
-    ++m_storage_full_;
-    spdlog::error("state directory {} is full ({}): new jobs are refused and leases paused until space returns",
-                  options_.state_dir, what);
-  }
-}
-
-bool Coordinator::IsStorageFault(const std::exception& e) const {
-  if (!options_.wait_for_space) return false;
-  if (dynamic_cast<const StorageFull*>(&e)) return true;
-  if (const auto* fe = dynamic_cast<const fs::filesystem_error*>(&e); fe && IsNoSpaceErrno(fe->code().value()))
-    return true;
-  // Image writers and the like report a failed write in their own words: while space is low,
-  // a write error is the disk's, not the job's.
-  return StorageLow();
-}
-
 void Coordinator::CheckStorageLocked() {
-  const auto now = Clock::now();
-  if (now - storage_checked_ < std::chrono::milliseconds(500)) return;
-  storage_checked_ = now;
-  const bool low = StorageLow();
-  if (!storage_full_) {
-    if (low) NoteStorageFull("free space is below --min-free-mb");
-    return;
-  }
-  // Space is back when it is above the reserve and a write of a typical blob succeeds.
-  if (low || !blobs_->CanWrite(1 << 20)) return;
-  storage_full_ = false;
-  spdlog::warn("state directory {} has space again: resuming", options_.state_dir);
+  if (!storage_.CheckRecovered([this] { return blobs_->CanWrite(1 << 20); })) return;
   for (auto& [id, job] : jobs_) {
     if (job.state != v1::JOB_STATE_RUNNING || !job.advance_paused) continue;
     job.advance_paused = false;
@@ -1632,7 +1559,7 @@ void Coordinator::TickLoop() {
     if (stopping_) break;
     CheckStorageLocked();
     // While the disk is full a worker cannot deliver: its lease is left to run on, not failed.
-    if (storage_full_) continue;
+    if (storage_.full()) continue;
     // Expired leases: the worker died or hangs; the task goes back to the queue.
     const auto now = Clock::now();
     for (auto& [id, job] : jobs_) {
@@ -1656,57 +1583,22 @@ void Coordinator::TickLoop() {
 }
 
 std::string Coordinator::MetricsText() {
-  std::map<std::string, int> states;
-  uint64_t pending = 0, leased = 0;
-  size_t workers = 0;
+  FarmGauges gauges;
   {
     std::lock_guard lock(mu_);
     for (const auto& [id, job] : jobs_) {
-      ++states[JobStateName(job.state)];
+      ++gauges.jobs_by_state[JobStateName(job.state)];
       if (job.state != v1::JOB_STATE_RUNNING) continue;
       for (const Task& t : job.tasks) {
-        pending += t.state == TaskStateCode::kPending;
-        leased += t.state == TaskStateCode::kLeased;
+        gauges.tasks_pending += t.state == TaskStateCode::kPending;
+        gauges.tasks_leased += t.state == TaskStateCode::kLeased;
       }
     }
-    workers = workers_.size();
+    gauges.workers = workers_.size();
   }
-  std::ostringstream os;
-  os << "# HELP lightfarm_jobs Jobs by state.\n# TYPE lightfarm_jobs gauge\n";
-  for (const char* s : {"queued", "planning", "running", "done", "failed", "cancelled"})
-    os << "lightfarm_jobs{state=\"" << s << "\"} " << states[s] << "\n";
-  auto counter = [&](const char* name, const char* help, uint64_t v) {
-    os << "# HELP " << name << " " << help << "\n# TYPE " << name << " counter\n" << name << " " << v << "\n";
-  };
-  auto gauge = [&](const char* name, const char* help, uint64_t v) {
-    os << "# HELP " << name << " " << help << "\n# TYPE " << name << " gauge\n" << name << " " << v << "\n";
-  };
-  gauge("lightfarm_tasks_pending", "Tasks of running jobs waiting for a worker.", pending);
-  gauge("lightfarm_tasks_leased", "Tasks leased to workers.", leased);
-  gauge("lightfarm_workers_registered", "Workers registered since the state directory was created.", workers);
-  counter("lightfarm_jobs_submitted_total", "Jobs accepted.", m_submitted_);
-  counter("lightfarm_leases_total", "Task leases granted.", m_leases_);
-  counter("lightfarm_lease_polls_total", "LeaseTask calls.", m_lease_polls_);
-  counter("lightfarm_tasks_completed_total", "Task results accepted.", m_completed_);
-  counter("lightfarm_tasks_duplicate_total", "Duplicate or stale task results ignored.", m_duplicates_);
-  counter("lightfarm_task_failures_total", "Failed task attempts (including expired leases).", m_failed_);
-  counter("lightfarm_leases_expired_total", "Leases that expired without a heartbeat.", m_expired_);
-  gauge("lightfarm_storage_full", "1 while the state directory is too full to take new work.", storage_full_ ? 1 : 0);
-  counter("lightfarm_storage_full_total", "Times the state directory filled up (writes refused or space below --min-free-mb).",
-          m_storage_full_);
-  counter("lightfarm_tasks_verified_total", "Tasks whose result two workers agreed on bit for bit.", m_verified_);
-  counter("lightfarm_verification_mismatches_total", "Verified tasks whose first two results differed.",
-          m_mismatches_);
-  counter("lightfarm_job_repairs_total", "Times a corrupted blob or a blocklisted worker sent a job back to recompute.",
-          m_repairs_);
-  counter("lightfarm_scrub_bytes_total", "Bytes of stored blobs re-hashed by the scrub.", m_scrubbed_bytes_);
-  counter("lightfarm_scrub_passes_total", "Complete passes of the scrub over the blob store.", m_scrub_passes_);
-  counter("lightfarm_gc_blobs_removed_total", "Blobs no job referenced, removed by the collection.", m_gc_removed_);
-  counter("lightfarm_gc_bytes_removed_total", "Bytes of those blobs.", m_gc_removed_bytes_);
-  counter("lightfarm_jobs_deleted_total", "Jobs deleted (by request or the retention policy).", m_deleted_);
-  counter("lightfarm_blobs_corrupted_total", "Blobs found corrupted on the coordinator's disk and quarantined.",
-          blobs_->corrupted());
-  return os.str();
+  gauges.storage_full = storage_.full();
+  gauges.blobs_corrupted = blobs_->corrupted();
+  return PrometheusText(counters_, gauges);
 }
 
 }  // namespace lightfarm

@@ -23,10 +23,12 @@
 #include "common/render/render_job.h"
 #include "common/render/serialize.h"
 #include "coordinator/blob_store.h"
+#include "coordinator/farm_metrics.h"
 #include "coordinator/job_images.h"
 #include "coordinator/job_planner.h"
+#include "coordinator/job_progress.h"
 #include "coordinator/job_store.h"
-#include "coordinator/storage_full.h"
+#include "coordinator/storage_guard.h"
 #include "coordinator/thread_pool.h"
 #include "lightfarm/v1/render.pb.h"
 #include "lightfarm/v1/worker.pb.h"
@@ -155,8 +157,8 @@ class Coordinator {
   void OnBlobCorrupted(const std::string& sha256);
 
   // The state directory is (nearly) full: new work is refused until space returns.
-  bool storage_full() const { return storage_full_; }
-  std::string StorageFullMessage() const;
+  bool storage_full() const { return storage_.full(); }
+  std::string StorageFullMessage() const { return storage_.FullMessage(); }
 
  private:
   using Clock = std::chrono::steady_clock;
@@ -268,14 +270,8 @@ class Coordinator {
   void BlocklistLocked(const std::string& worker, const std::string& reason);
   // Store rows of a (re)planned stage: tasks done before keep their results while those exist.
   void ApplyRecords(std::vector<Task>& tasks, const std::vector<TaskRecord>& records) const;
-  // Free space under the state directory is below --min-free-mb.
-  bool StorageLow() const;
-  // A write failed for want of space (or space ran low): new work pauses.
-  void NoteStorageFull(const std::string& what);
   // The tick loop's check: pauses when space is low, resumes the paused work when it returns.
   void CheckStorageLocked();
-  // An error from planning or combining: a storage fault (pause and retry later) or not.
-  bool IsStorageFault(const std::exception& e) const;
   void MaybeStartPlanningLocked();
   void PlanJob(int64_t id);      // on the planner pool
   void AdvanceStage(int64_t id);  // on the planner pool: Combine + next stage, or the film
@@ -300,10 +296,6 @@ class Coordinator {
   std::map<int64_t, Job> jobs_;
   std::map<std::string, WorkerInfo> workers_;
   std::atomic<bool> draining_{false};
-  std::atomic<bool> storage_full_{false};
-  mutable std::mutex storage_mu_;
-  std::string storage_full_what_;  // the write that failed, or the free space seen (storage_mu_)
-  Clock::time_point storage_checked_;
   bool stopping_ = false;
   std::condition_variable tick_cv_;
   std::thread ticker_;
@@ -312,11 +304,8 @@ class Coordinator {
   std::vector<std::string> scrub_queue_;  // blobs left in this scrub pass (upkeep thread only)
   size_t scrub_next_ = 0;
 
-  // Counters for /metrics.
-  std::atomic<uint64_t> m_leases_{0}, m_completed_{0}, m_duplicates_{0}, m_failed_{0},
-      m_expired_{0}, m_submitted_{0}, m_lease_polls_{0}, m_storage_full_{0}, m_repairs_{0},
-      m_verified_{0}, m_mismatches_{0}, m_scrubbed_bytes_{0}, m_scrub_passes_{0}, m_gc_removed_{0},
-      m_gc_removed_bytes_{0}, m_deleted_{0};
+  FarmCounters counters_;  // for /metrics (farm_metrics.h)
+  StorageGuard storage_;   // the state directory's free space (storage_guard.h)
 };
 
 }  // namespace lightfarm

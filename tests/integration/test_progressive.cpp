@@ -10,6 +10,7 @@
 #include "cli/embedded_farm.h"
 #include "common/render/progressive.h"
 #include "common/render/render_job.h"
+#include "coordinator/job_progress.h"
 #include "tests/integration/farm_harness.h"
 
 namespace lightfarm {
@@ -45,6 +46,27 @@ Image DirectAverage(uint64_t seed, uint32_t n, size_t lights, int side) {
 Image ExrImage(const TempDir& dir, const std::string& name, const std::string& bytes) {
   std::ofstream(dir.Path(name), std::ios::binary) << bytes;
   return ReadImage(dir.Path(name));
+}
+
+// The estimates a status call reports, from plain numbers.
+TEST(JobProgress, StageAndPassEstimates) {
+  // The final stage's pace so far times the tasks left; unknown before it or before a task.
+  EXPECT_DOUBLE_EQ(StageEtaSeconds(10, 40, 0, true, 5.0), 15.0);
+  EXPECT_DOUBLE_EQ(StageEtaSeconds(20, 40, 10, true, 5.0), 10.0);  // 10 done in this stage
+  EXPECT_LT(StageEtaSeconds(10, 40, 10, true, 5.0), 0.0);
+  EXPECT_LT(StageEtaSeconds(10, 40, 0, false, 5.0), 0.0);
+  // Passes: 8 left at 1 s each, 0.5 s of the running one spent...
+  PassAccumulator acc;
+  acc.Add(Image(2, 2), 1.0);
+  acc.Add(Image(2, 2), 1.0);
+  PassPlan plan;
+  plan.passes = 10;
+  EXPECT_DOUBLE_EQ(PassesEtaSeconds(plan, acc, acc.Noise(), 0.5), 7.5);
+  // ...capped by the time limit (2 s spent of 4, plus the running pass)...
+  plan.time_limit_s = 4;
+  EXPECT_DOUBLE_EQ(PassesEtaSeconds(plan, acc, acc.Noise(), 0.5), 2.5);
+  // ...and never negative.
+  EXPECT_DOUBLE_EQ(PassesEtaSeconds(plan, acc, acc.Noise(), 60.0), 0.0);
 }
 
 TEST(Progressive, PassesOnWorkersAndEmbeddedEqualTheDirectAverageBitForBit) {
