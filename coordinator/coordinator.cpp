@@ -10,7 +10,6 @@
 
 #include "common/farm/proto_convert.h"
 #include "common/render/stage_engine.h"
-#include "common/render/method_chooser.h"
 #include "common/util/error.h"
 
 namespace lightfarm {
@@ -211,53 +210,10 @@ std::string Coordinator::Submit(const v1::SubmitJobRequest& req) {
   if (storage_.full() || storage_.Low()) throw FarmError(Code::kResourceExhausted, storage_.FullMessage());
   // From the check that its files are stored to the job's insertion, no collection runs.
   std::lock_guard gc(gc_mu_);
-  // Validate the manifest: every file uploaded, every path inside the scene directory.
+  CheckSubmission(req, AdmissionLimits{options_.max_resolution, options_.max_lights, options_.max_spp},
+                  [this](const std::string& sha) { return blobs_->Has(sha); });
   const v1::SceneManifest& m = req.scene();
-  if (m.files_size() == 0) throw FarmError(Code::kInvalidArgument, "the scene manifest lists no files");
-  if (m.files_size() > 100000) throw FarmError(Code::kResourceExhausted, "the scene manifest lists too many files");
-  bool has_root = false;
-  std::set<std::string> paths;
-  for (const v1::SceneFile& f : m.files()) {
-    if (!IsSafeScenePath(f.path()))
-      throw FarmError(Code::kInvalidArgument, "scene file path \"" + f.path().substr(0, 200) +
-                                                  "\" must be relative and must not contain \"..\"");
-    if (!paths.insert(f.path()).second)
-      throw FarmError(Code::kInvalidArgument, "scene file \"" + f.path() + "\" is listed twice");
-    if (!IsSha256Hex(f.sha256()))
-      throw FarmError(Code::kInvalidArgument, "scene file \"" + f.path() + "\" has no valid SHA-256");
-    if (!blobs_->Has(f.sha256()))
-      throw FarmError(Code::kFailedPrecondition, "scene file \"" + f.path() + "\" (blob " + f.sha256() +
-                                                     ") was not uploaded");
-    has_root |= f.path() == m.root();
-  }
-  if (!has_root) throw FarmError(Code::kInvalidArgument, "the scene root \"" + m.root() + "\" is not among its files");
-  // Settings: malformed values are INVALID_ARGUMENT, configured limits RESOURCE_EXHAUSTED.
   const v1::RenderSettings& s = req.settings();
-  if (s.width() < 0 || s.height() < 0 || s.spp() < 0)
-    throw FarmError(Code::kInvalidArgument, "resolution and spp must not be negative");
-  if (s.width() > options_.max_resolution || s.height() > options_.max_resolution)
-    throw FarmError(Code::kResourceExhausted, "resolution " + std::to_string(s.width()) + "x" + std::to_string(s.height()) +
-                                                  " exceeds this coordinator's limit of " +
-                                                  std::to_string(options_.max_resolution) + " per axis");
-  if (s.lights() > options_.max_lights)
-    throw FarmError(Code::kResourceExhausted, std::to_string(s.lights()) + " lights exceed this coordinator's limit of " +
-                                                  std::to_string(options_.max_lights));
-  if (s.spp() > options_.max_spp)
-    throw FarmError(Code::kResourceExhausted, "spp " + std::to_string(s.spp()) + " exceeds the limit of " +
-                                                  std::to_string(options_.max_spp));
-  if (!std::isfinite(s.until_noise()) || s.until_noise() < 0 || !std::isfinite(s.time_limit_s()) ||
-      s.time_limit_s() < 0)
-    throw FarmError(Code::kInvalidArgument, "until_noise and time_limit_s must be finite and not negative");
-  if (s.passes() > 1'000'000)
-    throw FarmError(Code::kResourceExhausted, std::to_string(s.passes()) + " passes exceed the limit of 1000000");
-  if (s.method_rule().size() > 4096)
-    throw FarmError(Code::kInvalidArgument, "method_rule is longer than 4096 bytes");
-  try {
-    CheckGatherMethodOptions(FromProto(s).method, OptionMap::Parse(FromProto(s).params));
-  } catch (const OptionError& e) {
-    throw FarmError(Code::kInvalidArgument, e.what());
-  }
-
   std::lock_guard lock(mu_);
   int unfinished = 0;
   for (const auto& [id, j] : jobs_) unfinished += !IsTerminal(j.state);

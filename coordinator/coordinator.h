@@ -22,7 +22,9 @@
 #include "common/farm/farm_protocol.h"
 #include "common/render/render_job.h"
 #include "common/render/serialize.h"
+#include "coordinator/admission.h"
 #include "coordinator/blob_store.h"
+#include "coordinator/farm_error.h"
 #include "coordinator/farm_metrics.h"
 #include "coordinator/job_images.h"
 #include "coordinator/job_planner.h"
@@ -73,16 +75,6 @@ struct CoordinatorOptions {
   // the caller needs no EXR decode. Called on a planner thread, without the scheduler's lock,
   // after the result is stored and before the job is marked done.
   std::function<void(const std::string& job_id, const Image& image)> on_result;
-};
-
-class FarmError : public std::runtime_error {
- public:
-  enum class Code { kInvalidArgument, kNotFound, kResourceExhausted, kFailedPrecondition, kUnavailable, kDataLoss };
-  FarmError(Code code, const std::string& message) : std::runtime_error(message), code_(code) {}
-  Code code() const { return code_; }
-
- private:
-  Code code_;
 };
 
 struct LeaseGrant {
