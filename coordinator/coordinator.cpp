@@ -138,15 +138,20 @@ void Coordinator::Start() {
     job.id = r.id;
     job.name = r.name;
     job.priority = r.priority;
-    job.state = v1::JobState(r.state);
-    job.manifest.ParseFromString(r.manifest);
-    job.settings.ParseFromString(r.settings);
+    job.state = r.state;
+    // The store keeps the request as submitted (the wire's bytes); the scheduler, plain types.
+    v1::SceneManifest manifest;
+    v1::RenderSettings settings;
+    manifest.ParseFromString(r.manifest);
+    settings.ParseFromString(r.settings);
+    job.manifest = FromProto(manifest);
+    job.settings = FromProto(settings);
     job.stage = r.stage;
     job.error = r.error;
     job.result_sha = r.result_sha;
     job.stats_json = r.stats_json;
     job.ended_unix = r.finished > 0 ? r.finished : r.created;
-    job.passes = FromProto(job.settings).progressive;
+    job.passes = job.settings.progressive;
     if (job.passes.progressive()) {
       PassAccumulator acc;
       try {
@@ -157,7 +162,7 @@ void Coordinator::Start() {
       } catch (const std::exception& e) {
         // The store's tasks belong to pass r.pass: without its accumulation nothing can resume.
         if (!IsTerminal(job.state)) {
-          job.state = v1::JOB_STATE_FAILED;
+          job.state = JobState::kFailed;
           job.error = std::string("the accumulation of the finished passes is unreadable: ") + e.what();
           store_->SetJobState(job.id, job.state, job.error);
         }
@@ -168,9 +173,9 @@ void Coordinator::Start() {
       job.acc = std::make_shared<const PassAccumulator>(std::move(acc));
     }
     if (!IsTerminal(job.state)) {
-      if (job.state != v1::JOB_STATE_QUEUED)
+      if (job.state != JobState::kQueued)
         spdlog::info("job {}: resuming at stage {}", job.id, job.stage);
-      job.state = v1::JOB_STATE_QUEUED;
+      job.state = JobState::kQueued;
     }
     jobs_.emplace(job.id, std::move(job));
   }
@@ -223,7 +228,7 @@ std::string Coordinator::Submit(const v1::SubmitJobRequest& req) {
   JobRecord r;
   r.name = req.name();
   r.priority = req.priority();
-  r.state = v1::JOB_STATE_QUEUED;
+  r.state = JobState::kQueued;
   r.manifest = m.SerializeAsString();
   r.settings = s.SerializeAsString();
   Job job;
@@ -235,9 +240,9 @@ std::string Coordinator::Submit(const v1::SubmitJobRequest& req) {
   }
   job.name = req.name();
   job.priority = req.priority();
-  job.manifest = m;
-  job.settings = s;
-  job.passes = FromProto(s).progressive;
+  job.manifest = FromProto(m);
+  job.settings = FromProto(s);
+  job.passes = job.settings.progressive;
   if (job.passes.progressive()) job.acc = std::make_shared<const PassAccumulator>();
   const int64_t id = job.id;
   jobs_.emplace(id, std::move(job));
@@ -264,10 +269,10 @@ Coordinator::Job& Coordinator::FindJob(const std::string& job_id) {
 v1::JobStatus Coordinator::StatusLocked(const Job& job) const {
   v1::JobStatus st;
   st.set_job_id(std::to_string(job.id));
-  st.set_state(job.state);
+  st.set_state(ToProto(job.state));
   st.set_name(job.name);
   st.set_priority(job.priority);
-  st.set_method(job.settings.method());
+  st.set_method(job.settings.method);
   st.set_stage(job.stage);
   st.set_stage_count(job.stage_count);
   st.set_stage_name(job.stage_name);
@@ -278,21 +283,20 @@ v1::JobStatus Coordinator::StatusLocked(const Job& job) const {
   st.set_tasks_completed_total(job.completions_total);
   st.set_tasks_verified(job.tasks_verified);
   st.set_eta_s(-1);
-  if (job.state == v1::JOB_STATE_RUNNING || job.state == v1::JOB_STATE_PLANNING) {
+  if (job.state == JobState::kRunning || job.state == JobState::kPlanning) {
     const auto now = Clock::now();
     st.set_elapsed_s(Seconds(now - job.started));
-    if (job.state == v1::JOB_STATE_RUNNING)
+    if (job.state == JobState::kRunning)
       st.set_eta_s(StageEtaSeconds(job.tasks_done, job.tasks.size(), job.done_at_stage_start,
                                    job.stage + 1 == job.stage_count, Seconds(now - job.stage_started)));
-  } else if (job.state == v1::JOB_STATE_DONE) {
+  } else if (job.state == JobState::kDone) {
     st.set_eta_s(0);
   }
   // A job that ended under this coordinator: how long it ran (one restored from the store: 0).
   if (IsTerminal(job.state) && job.ended > job.started && job.started != Clock::time_point{})
     st.set_elapsed_s(Seconds(job.ended - job.started));
-  st.set_scene(job.manifest.root());
-  for (const v1::SceneFile& f : job.manifest.files())
-    if (f.path() == job.manifest.root()) st.set_scene_sha256(f.sha256());
+  st.set_scene(job.manifest.root);
+  st.set_scene_sha256(job.manifest.RootSha256());
   if (job.passes.progressive()) ProgressiveStatus(job, &st);
   if (!IsTerminal(job.state) && storage_.full())
     st.set_waiting(storage_.FullMessage());
@@ -328,8 +332,8 @@ v1::JobStatus Coordinator::Cancel(const std::string& job_id) {
   std::lock_guard lock(mu_);
   Job& job = FindJob(job_id);
   if (!IsTerminal(job.state)) {
-    store_->SetJobState(job.id, v1::JOB_STATE_CANCELLED, "cancelled");  // a full disk: refused, unchanged
-    job.state = v1::JOB_STATE_CANCELLED;
+    store_->SetJobState(job.id, JobState::kCancelled, "cancelled");  // a full disk: refused, unchanged
+    job.state = JobState::kCancelled;
     job.ended = Clock::now();
     job.ended_unix = UnixNow();
     job.error = "cancelled";
@@ -406,7 +410,7 @@ JobResult Coordinator::GetResult(const std::string& job_id) {
   // A progressive job has a result as soon as one pass is done: the mean of its passes so far,
   // while it runs and after it is cancelled.
   const bool partial = job.passes.progressive() && !job.result_sha.empty();
-  if (job.state != v1::JOB_STATE_DONE && !partial)
+  if (job.state != JobState::kDone && !partial)
     throw FarmError(Code::kFailedPrecondition, "job " + job_id + " is " + JobStateName(job.state) +
                                                    (job.error.empty() ? "" : " (" + job.error + ")") +
                                                    ", not done");
@@ -418,9 +422,9 @@ JobResult Coordinator::GetResult(const std::string& job_id) {
   if (!blobs_->Verify(job.result_sha)) {
     const std::string sha = job.result_sha;
     std::string next = "render the job again";
-    if (job.state == v1::JOB_STATE_DONE && !job.passes.progressive()) {
+    if (job.state == JobState::kDone && !job.passes.progressive()) {
       job.result_sha.clear();
-      job.state = v1::JOB_STATE_RUNNING;  // RepairLocked re-plans a running job
+      job.state = JobState::kRunning;  // RepairLocked re-plans a running job
       RepairLocked(job, sha, "its result image is corrupted on the coordinator's disk (quarantined)");
       if (!IsTerminal(job.state)) next = "it is being made again from its stored tasks; fetch it when it is done";
     }
@@ -446,7 +450,7 @@ bool Coordinator::Preview(const std::string& job_id, uint64_t have_tiles, JobPre
       version = uint64_t(job.acc->passes()) << 32;
       acc = job.acc;
     } else {
-      if (job.state != v1::JOB_STATE_RUNNING || job.stage + 1 != job.stage_count || !job.plan) return false;
+      if (job.state != JobState::kRunning || job.stage + 1 != job.stage_count || !job.plan) return false;
       version = job.tasks_done;
       plan = job.plan;
       for (const Task& t : job.tasks)
@@ -467,7 +471,7 @@ bool Coordinator::Preview(const std::string& job_id, uint64_t have_tiles, JobPre
   } catch (const BlobCorrupted& e) {
     std::lock_guard lock(mu_);
     auto it = jobs_.find(id);
-    if (it != jobs_.end() && it->second.state == v1::JOB_STATE_RUNNING) RepairLocked(it->second, e.sha256(), e.what());
+    if (it != jobs_.end() && it->second.state == JobState::kRunning) RepairLocked(it->second, e.sha256(), e.what());
     return false;
   }
   {
@@ -528,7 +532,7 @@ void Coordinator::CheckLeaseLocked(const std::string& worker_id, const std::stri
     return FarmError(Code::kFailedPrecondition, "lease " + lease_id + " was never granted");
   };
   if (ref.stage > std::max(job.stage, job.stage_high) || ref.stage < 0) throw never_granted();
-  if (job.state != v1::JOB_STATE_RUNNING || ref.stage != job.stage) return;  // over (or repaired): stale
+  if (job.state != JobState::kRunning || ref.stage != job.stage) return;  // over (or repaired): stale
   if (ref.task >= job.tasks.size()) throw never_granted();
   const Task& task = job.tasks[ref.task];
   // attempt_row is 0 for tasks restored after a restart: their leases cannot be told apart.
@@ -541,7 +545,7 @@ Coordinator::Task* Coordinator::FindTaskLocked(const LeaseRef& ref, Job** job_ou
   if (it == jobs_.end()) return nullptr;
   Job& job = it->second;
   *job_out = &job;
-  if (job.state != v1::JOB_STATE_RUNNING || job.stage != ref.stage || ref.task >= job.tasks.size())
+  if (job.state != JobState::kRunning || job.stage != ref.stage || ref.task >= job.tasks.size())
     return nullptr;
   return &job.tasks[ref.task];
 }
@@ -562,7 +566,7 @@ LeaseGrant Coordinator::Lease(const std::string& worker_id) {
   Job* best = nullptr;
   size_t best_task = 0;
   for (auto& [id, job] : jobs_) {
-    if (job.state != v1::JOB_STATE_RUNNING || job.advancing) continue;
+    if (job.state != JobState::kRunning || job.advancing) continue;
     if (best && job.priority <= best->priority) continue;
     auto wf = job.worker_failures.find(worker_id);
     if (wf != job.worker_failures.end() && wf->second >= options_.max_attempts) continue;
@@ -621,8 +625,8 @@ LeaseGrant Coordinator::Lease(const std::string& worker_id) {
   worker.lease = grant.lease_id;
   v1::JobContext& ctx = grant.job;
   ctx.set_job_id(std::to_string(job.id));
-  *ctx.mutable_scene() = job.manifest;
-  *ctx.mutable_settings() = PassSettings(job);
+  *ctx.mutable_scene() = ToProto(job.manifest);
+  *ctx.mutable_settings() = ToProto(PassSettings(job));
   ctx.set_clamp(job.clamp);
   ctx.set_lights_sha256(job.lights_sha);
   ctx.set_receivers_sha256(job.receivers_sha);
@@ -793,7 +797,7 @@ bool Coordinator::Complete(const std::string& worker_id, const std::string& leas
     BlocklistLocked(liar, "its result for task " + std::to_string(ref.task) + " of stage " + std::to_string(ref.stage) +
                               " of job " + std::to_string(id) + " differed from two other workers' (bit for bit)");
   Job& same = jobs_.at(id);  // blocklisting may have sent it back to an earlier stage
-  if (same.state == v1::JOB_STATE_RUNNING && same.tasks_done == same.tasks.size() && !same.advancing) {
+  if (same.state == JobState::kRunning && same.tasks_done == same.tasks.size() && !same.advancing) {
     same.advancing = true;
     planner_->Submit([this, id] { AdvanceStage(id); });
   }
@@ -886,7 +890,7 @@ bool Coordinator::OtherWorkerMayRunLocked(const Job& job, const std::string& wor
 }
 
 std::string Coordinator::WaitingReasonLocked(const Job& job) const {
-  if (job.state != v1::JOB_STATE_RUNNING || job.advancing) return "";
+  if (job.state != JobState::kRunning || job.advancing) return "";
   bool pending = false;
   for (size_t t = job.next_pending; t < job.tasks.size() && !pending; ++t)
     pending = job.tasks[t].state == TaskStateCode::kPending;
@@ -920,7 +924,7 @@ std::string Coordinator::WaitingReasonLocked(const Job& job) const {
 }
 
 void Coordinator::FailJobLocked(Job& job, const std::string& error) {
-  job.state = v1::JOB_STATE_FAILED;
+  job.state = JobState::kFailed;
   job.ended = Clock::now();
   job.ended_unix = UnixNow();
   job.error = error;
@@ -940,25 +944,25 @@ void Coordinator::OnBlobCorrupted(const std::string& sha) {
   std::lock_guard lock(mu_);
   for (auto& [id, job] : jobs_) {
     // A finished job's image is made again from its stored tasks before anyone asks for it.
-    if (job.state == v1::JOB_STATE_DONE && job.result_sha == sha && !job.passes.progressive()) {
+    if (job.state == JobState::kDone && job.result_sha == sha && !job.passes.progressive()) {
       job.result_sha.clear();
-      job.state = v1::JOB_STATE_RUNNING;
+      job.state = JobState::kRunning;
       RepairLocked(job, sha, "its result image is corrupted on the coordinator's disk (quarantined)");
       continue;
     }
-    if (job.state != v1::JOB_STATE_RUNNING) continue;  // planning Puts what it needs again
+    if (job.state != JobState::kRunning) continue;  // planning Puts what it needs again
     bool needed = sha == job.lights_sha || sha == job.receivers_sha || sha == job.artifact_sha;
-    for (const v1::SceneFile& f : job.manifest.files()) needed |= f.sha256() == sha;
+    for (const SceneFileRef& f : job.manifest.files) needed |= f.sha256 == sha;
     if (needed) RepairLocked(job, sha, "blob " + sha + " is corrupted on the coordinator's disk (quarantined)");
   }
 }
 
 void Coordinator::RepairLocked(Job& job, const std::string& sha, const std::string& what) {
-  for (const v1::SceneFile& f : job.manifest.files())
-    if (f.sha256() == sha) {
+  for (const SceneFileRef& f : job.manifest.files)
+    if (f.sha256 == sha) {
       // The user's upload is the only copy: quarantined, it is missing, so a new submit of the
       // same scene uploads it again.
-      FailJobLocked(job, "scene file \"" + f.path() + "\" is corrupted on the coordinator's disk (blob " + sha +
+      FailJobLocked(job, "scene file \"" + f.path + "\" is corrupted on the coordinator's disk (blob " + sha +
                              ", quarantined); submit the job again to upload it again");
       return;
     }
@@ -987,11 +991,11 @@ void Coordinator::RecomputeFromLocked(Job& job, int stage, const std::string& wh
   spdlog::warn("job {}: {}; recomputing it from stage {}", job.id, why, stage);
   try {
     store_->SetJobStage(job.id, stage);
-    store_->SetJobState(job.id, v1::JOB_STATE_PLANNING, "");
+    store_->SetJobState(job.id, JobState::kPlanning, "");
   } catch (const StorageFull& e) {
     storage_.NoteFull(e.what());
   }
-  job.state = v1::JOB_STATE_PLANNING;
+  job.state = JobState::kPlanning;
   job.stage = stage;
   job.tasks.clear();
   job.next_pending = 0;
@@ -1022,7 +1026,7 @@ double TaskHash01(int64_t job, int pass, int stage, size_t task) {
 
 void Coordinator::MarkVerifiedTasksLocked(Job& job) const {
   for (size_t t = 0; t < job.tasks.size(); ++t)
-    job.tasks[t].verify = job.settings.verify() ||
+    job.tasks[t].verify = job.settings.verify ||
                           (options_.verify_share > 0 && TaskHash01(job.id, job.pass, job.stage, t) < options_.verify_share);
 }
 
@@ -1044,7 +1048,7 @@ void Coordinator::BlocklistLocked(const std::string& liar, const std::string& re
       // current one), except those another worker confirmed.
       std::set<std::pair<int, int>> mine;
       for (const auto& st : store_->TasksDoneBy(job.id, liar)) mine.insert(st);
-      if (job.state == v1::JOB_STATE_RUNNING)
+      if (job.state == JobState::kRunning)
         for (size_t t = 0; t < job.tasks.size(); ++t) {
           const Task& task = job.tasks[t];
           if (task.worker == liar && task.state == TaskStateCode::kDone) mine.insert({job.stage, int(t)});
@@ -1061,7 +1065,7 @@ void Coordinator::BlocklistLocked(const std::string& liar, const std::string& re
         store_->UpdateTask(job.id, reset);
         earliest = std::min(earliest, r.stage);
       }
-      if (earliest < job.stage || job.state != v1::JOB_STATE_RUNNING || job.advancing) {
+      if (earliest < job.stage || job.state != JobState::kRunning || job.advancing) {
         RecomputeFromLocked(job, earliest, "worker " + liar + " is blocklisted");
         continue;
       }
@@ -1087,19 +1091,19 @@ void Coordinator::MaybeStartPlanningLocked() {
   if (stopping_ || storage_.full()) return;
   int active = 0;
   for (const auto& [id, j] : jobs_)
-    active += j.state == v1::JOB_STATE_PLANNING || j.state == v1::JOB_STATE_RUNNING;
+    active += j.state == JobState::kPlanning || j.state == JobState::kRunning;
   while (active < options_.max_active_jobs) {
     Job* next = nullptr;
     for (auto& [id, j] : jobs_)
-      if (j.state == v1::JOB_STATE_QUEUED && (!next || j.priority > next->priority)) next = &j;
+      if (j.state == JobState::kQueued && (!next || j.priority > next->priority)) next = &j;
     if (!next) return;
     try {
-      store_->SetJobState(next->id, v1::JOB_STATE_PLANNING, "");
+      store_->SetJobState(next->id, JobState::kPlanning, "");
     } catch (const StorageFull& e) {
       storage_.NoteFull(e.what());
       return;
     }
-    next->state = v1::JOB_STATE_PLANNING;
+    next->state = JobState::kPlanning;
     next->started = next->pass_started = Clock::now();
     const int64_t id = next->id;
     planner_->Submit([this, id] { PlanJob(id); });
@@ -1108,15 +1112,15 @@ void Coordinator::MaybeStartPlanningLocked() {
 }
 
 void Coordinator::PlanJob(int64_t id) {
-  v1::SceneManifest manifest;
-  v1::RenderSettings settings;
+  SceneManifest manifest;
+  RenderSettings settings;
   int stage = 0;
   {
     std::lock_guard lock(mu_);
     auto found = jobs_.find(id);
     if (found == jobs_.end()) return;  // deleted meanwhile
     Job& job = found->second;
-    if (job.state != v1::JOB_STATE_PLANNING) return;  // cancelled meanwhile
+    if (job.state != JobState::kPlanning) return;  // cancelled meanwhile
     manifest = job.manifest;
     settings = PassSettings(job);
     stage = job.stage;
@@ -1129,7 +1133,7 @@ void Coordinator::PlanJob(int64_t id) {
     auto found = jobs_.find(id);
     if (found == jobs_.end()) return;  // deleted meanwhile
     Job& job = found->second;
-    if (job.state == v1::JOB_STATE_PLANNING) RepairLocked(job, e.sha256(), e.what());
+    if (job.state == JobState::kPlanning) RepairLocked(job, e.sha256(), e.what());
     return;
   } catch (const std::exception& e) {
     const bool storage = storage_.IsFault(e);
@@ -1138,9 +1142,9 @@ void Coordinator::PlanJob(int64_t id) {
     auto found = jobs_.find(id);
     if (found == jobs_.end()) return;  // deleted meanwhile
     Job& job = found->second;
-    if (job.state != v1::JOB_STATE_PLANNING) return;
+    if (job.state != JobState::kPlanning) return;
     if (storage) {
-      job.state = v1::JOB_STATE_QUEUED;  // planned again when space returns
+      job.state = JobState::kQueued;  // planned again when space returns
       spdlog::warn("job {}: planning paused, the disk is full: {}", id, e.what());
       return;
     }
@@ -1159,7 +1163,7 @@ void Coordinator::PlanJob(int64_t id) {
   auto found = jobs_.find(id);
   if (found == jobs_.end()) return;  // deleted meanwhile
   Job& job = found->second;
-  if (job.state != v1::JOB_STATE_PLANNING) return;
+  if (job.state != JobState::kPlanning) return;
   const StageEngine engine(*planned.plan);
   job.plan = planned.plan;
   job.times = planned.times;
@@ -1178,7 +1182,7 @@ void Coordinator::PlanJob(int64_t id) {
   job.done_at_stage_start = job.tasks_done;
   job.stage_started = Clock::now();
   job.attempts_total += attempts;
-  job.state = v1::JOB_STATE_RUNNING;
+  job.state = JobState::kRunning;
   try {
     store_->SetJobState(id, job.state, "");
   } catch (const StorageFull& e) {
@@ -1228,7 +1232,7 @@ void Coordinator::AdvanceStage(int64_t id) {
     auto found = jobs_.find(id);
     if (found == jobs_.end()) return;  // deleted meanwhile
     Job& job = found->second;
-    if (job.state != v1::JOB_STATE_RUNNING || !job.plan) return;
+    if (job.state != JobState::kRunning || !job.plan) return;
     plan = job.plan;
     stage = job.stage;
     for (const Task& t : job.tasks) results.push_back(t.result_sha);
@@ -1245,7 +1249,7 @@ void Coordinator::AdvanceStage(int64_t id) {
     auto found = jobs_.find(id);
     if (found == jobs_.end()) return;  // deleted meanwhile
     Job& job = found->second;
-    if (job.state != v1::JOB_STATE_RUNNING) return;
+    if (job.state != JobState::kRunning) return;
     job.stage = stage + 1;
     job.stage_high = std::max(job.stage_high, job.stage);
     job.stage_name = engine.stage_name(job.stage);
@@ -1288,9 +1292,9 @@ void Coordinator::AdvanceStage(int64_t id) {
   }
 }
 
-v1::RenderSettings Coordinator::PassSettings(const Job& job) {
-  v1::RenderSettings settings = job.settings;
-  settings.set_seed(PassSeed(job.settings.seed(), uint32_t(job.pass)));
+RenderSettings Coordinator::PassSettings(const Job& job) {
+  RenderSettings settings = job.settings;
+  settings.seed = PassSeed(job.settings.seed, uint32_t(job.pass));
   return settings;
 }
 
@@ -1299,7 +1303,7 @@ void Coordinator::FinishJob(int64_t id, std::shared_ptr<Plan> plan, int final_st
   PhaseTimes times;
   Clock::time_point pass_started;
   uint64_t job_seed = 0;
-  v1::RenderSettings settings;
+  RenderSettings settings;
   std::string root, previous_stats;
   int pass = 0;
   PassPlan passes;
@@ -1312,9 +1316,9 @@ void Coordinator::FinishJob(int64_t id, std::shared_ptr<Plan> plan, int final_st
     for (const Task& t : job.tasks) specs.push_back(t.spec);
     times = job.times;
     pass_started = job.pass_started;
-    job_seed = job.settings.seed();
+    job_seed = job.settings.seed;
     settings = PassSettings(job);
-    root = job.manifest.root();
+    root = job.manifest.root;
     pass = job.pass;
     passes = job.passes;
     acc = job.acc;
@@ -1350,9 +1354,9 @@ void Coordinator::FinishJob(int64_t id, std::shared_ptr<Plan> plan, int final_st
     if (finished.more_passes) {
       spdlog::info("job {}: pass {} done (noise {:.4f}, p90 {:.4f})", id, pass, finished.noise.rel_stderr,
                    finished.noise.p90_rel_stderr);
-      if (job.state != v1::JOB_STATE_RUNNING) return;  // cancelled meanwhile: the passes so far are its result
+      if (job.state != JobState::kRunning) return;  // cancelled meanwhile: the passes so far are its result
       // The next pass keeps the job's slot: planned at once, its tasks from stage 0.
-      job.state = v1::JOB_STATE_PLANNING;
+      job.state = JobState::kPlanning;
       job.stage = 0;
       job.tasks.clear();
       job.next_pending = 0;
@@ -1368,7 +1372,7 @@ void Coordinator::FinishJob(int64_t id, std::shared_ptr<Plan> plan, int final_st
       return;
     }
   }
-  job.state = v1::JOB_STATE_DONE;
+  job.state = JobState::kDone;
   job.ended = Clock::now();
   job.ended_unix = UnixNow();
   spdlog::info("job {}: done ({} tasks, {} attempts)", id, finished.tasks, finished.attempts);
@@ -1401,7 +1405,7 @@ size_t Coordinator::CollectGarbage() {
   {
     std::lock_guard lock(mu_);
     for (const auto& [id, job] : jobs_) {
-      for (const v1::SceneFile& f : job.manifest.files()) live.insert(f.sha256());
+      for (const SceneFileRef& f : job.manifest.files) live.insert(f.sha256);
       for (const std::string* sha : {&job.result_sha, &job.lights_sha, &job.receivers_sha, &job.artifact_sha})
         if (!sha->empty()) live.insert(*sha);
       for (const Task& t : job.tasks) {
@@ -1497,7 +1501,7 @@ void Coordinator::UpkeepLoop() {
 void Coordinator::CheckStorageLocked() {
   if (!storage_.CheckRecovered([this] { return blobs_->CanWrite(1 << 20); })) return;
   for (auto& [id, job] : jobs_) {
-    if (job.state != v1::JOB_STATE_RUNNING || !job.advance_paused) continue;
+    if (job.state != JobState::kRunning || !job.advance_paused) continue;
     job.advance_paused = false;
     job.advancing = true;
     const int64_t job_id = id;
@@ -1519,14 +1523,14 @@ void Coordinator::TickLoop() {
     // Expired leases: the worker died or hangs; the task goes back to the queue.
     const auto now = Clock::now();
     for (auto& [id, job] : jobs_) {
-      if (job.state != v1::JOB_STATE_RUNNING) continue;
-      for (size_t t = 0; t < job.tasks.size() && job.state == v1::JOB_STATE_RUNNING; ++t) {
+      if (job.state != JobState::kRunning) continue;
+      for (size_t t = 0; t < job.tasks.size() && job.state == JobState::kRunning; ++t) {
         Task& task = job.tasks[t];
         if (task.state == TaskStateCode::kLeased && task.expiry < now) ExpireLocked(job, uint32_t(t));
       }
       // A job no live worker may run fails once that has lasted two lease timeouts (a worker
       // restarting on its cache has time to come back); until then `waiting` says why.
-      const std::string reason = job.state == v1::JOB_STATE_RUNNING ? WaitingReasonLocked(job) : "";
+      const std::string reason = job.state == JobState::kRunning ? WaitingReasonLocked(job) : "";
       if (reason.rfind("every live worker", 0) != 0) {
         job.blocked_since = {};
       } else if (job.blocked_since == Clock::time_point{}) {
@@ -1544,7 +1548,7 @@ std::string Coordinator::MetricsText() {
     std::lock_guard lock(mu_);
     for (const auto& [id, job] : jobs_) {
       ++gauges.jobs_by_state[JobStateName(job.state)];
-      if (job.state != v1::JOB_STATE_RUNNING) continue;
+      if (job.state != JobState::kRunning) continue;
       for (const Task& t : job.tasks) {
         gauges.tasks_pending += t.state == TaskStateCode::kPending;
         gauges.tasks_leased += t.state == TaskStateCode::kLeased;

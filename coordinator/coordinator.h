@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "common/farm/farm_protocol.h"
+#include "common/farm/job_types.h"
 #include "common/render/render_job.h"
 #include "common/render/serialize.h"
 #include "coordinator/admission.h"
@@ -173,9 +174,9 @@ class Coordinator {
     int64_t id = 0;
     std::string name;
     int priority = 0;
-    v1::JobState state = v1::JOB_STATE_QUEUED;
-    v1::SceneManifest manifest;
-    v1::RenderSettings settings;
+    JobState state = JobState::kQueued;
+    SceneManifest manifest;
+    RenderSettings settings;
     int stage = 0, stage_count = 1;
     std::string stage_name;
     std::vector<Task> tasks;  // of the current stage
@@ -276,7 +277,7 @@ class Coordinator {
   void ApplyRetention();
   static std::vector<Task> MakeTasks(const std::vector<SubMatrixTask>& specs);
   // The settings a job's current pass renders with: the job's, seeded PassSeed(seed, pass).
-  static v1::RenderSettings PassSettings(const Job& job);
+  static RenderSettings PassSettings(const Job& job);
 
   CoordinatorOptions options_;
   std::unique_ptr<JobStore> store_;

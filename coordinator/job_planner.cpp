@@ -28,25 +28,25 @@ double SecondsSince(std::chrono::steady_clock::time_point t) {
 
 }  // namespace
 
-void JobPlanner::MaterializeScene(const v1::SceneManifest& manifest, const std::string& dir) {
+void JobPlanner::MaterializeScene(const SceneManifest& manifest, const std::string& dir) {
   std::error_code ec;
   fs::remove_all(dir, ec);
-  for (const v1::SceneFile& f : manifest.files()) {
-    const fs::path target = fs::path(dir) / f.path();
+  for (const SceneFileRef& f : manifest.files) {
+    const fs::path target = fs::path(dir) / f.path;
     fs::create_directories(target.parent_path());
     // Only a file that still hashes to what was uploaded is parsed (a corrupted one is quarantined).
-    blobs_.CheckIntact(f.sha256());
-    fs::copy_file(blobs_.Path(f.sha256()), target, fs::copy_options::overwrite_existing);
+    blobs_.CheckIntact(f.sha256);
+    fs::copy_file(blobs_.Path(f.sha256), target, fs::copy_options::overwrite_existing);
   }
 }
 
-PlannedStage JobPlanner::PlanStage(int64_t id, const v1::SceneManifest& manifest,
-                                   const v1::RenderSettings& settings, int stage) {
+PlannedStage JobPlanner::PlanStage(int64_t id, const SceneManifest& manifest, const RenderSettings& settings,
+                                   int stage) {
   const std::string dir = JobDir(id) + "/scene";
   MaterializeScene(manifest, dir);
   PlannedStage out;
   try {
-    out.plan = std::make_shared<Plan>(BuildPlan(dir + "/" + manifest.root(), FromProto(settings), &out.times));
+    out.plan = std::make_shared<Plan>(BuildPlan(dir + "/" + manifest.root, settings, &out.times));
   } catch (const SceneError& e) {
     // Name the file as the user knows it: relative to the scene's directory.
     throw std::runtime_error(ReplaceAll(e.what(), dir + "/", ""));
@@ -94,7 +94,7 @@ NextStage JobPlanner::CombineStage(int64_t id, const Plan& plan, int stage,
   return next;
 }
 
-PassOutcome JobPlanner::AssemblePass(int64_t id, const Plan& plan, const v1::RenderSettings& settings,
+PassOutcome JobPlanner::AssemblePass(int64_t id, const Plan& plan, const RenderSettings& settings,
                                      const std::string& root, int final_stage,
                                      const std::vector<Bytes>& final_specs, PhaseTimes times,
                                      double total_seconds) {
@@ -115,7 +115,7 @@ PassOutcome JobPlanner::AssemblePass(int64_t id, const Plan& plan, const v1::Ren
   uint64_t nan_samples = 0;
   out.image = AssembleImage(plan, engine.outcome(), &nan_samples);
   times.Add("film", SecondsSince(t_film));
-  out.stats = MakeStats(plan, FromProto(settings), engine.outcome(), nan_samples, times,
+  out.stats = MakeStats(plan, settings, engine.outcome(), nan_samples, times,
                         total_seconds + SecondsSince(t_film));
   out.stats["scene"] = root;
   out.stats["farm"] = {{"job_id", std::to_string(id)}, {"attempts", out.attempts}, {"tasks", out.tasks}};
@@ -129,7 +129,7 @@ FinishedJob JobPlanner::Finish(int64_t id, PassOutcome pass) {
   out.result_sha = blobs_.Put(WriteResultExr(pass.image, JobDir(id) + "/result.exr"));
   out.image = std::move(pass.image);
   out.stats_json = pass.stats.dump(2);
-  store_.FinishJob(id, v1::JOB_STATE_DONE, out.result_sha, out.stats_json);
+  store_.FinishJob(id, JobState::kDone, out.result_sha, out.stats_json);
   std::error_code ec;
   fs::remove_all(JobDir(id) + "/scene", ec);
   return out;
@@ -183,7 +183,7 @@ FinishedJob JobPlanner::FinishPass(int64_t id, int pass, const PassPlan& passes,
   // pass starts: a restarted coordinator resumes at the next pass with every finished one.
   store_.FinishPass(id, pass + 1, accum_sha, out.result_sha, out.stats_json);
   if (!out.more_passes) {
-    store_.FinishJob(id, v1::JOB_STATE_DONE, out.result_sha, out.stats_json);
+    store_.FinishJob(id, JobState::kDone, out.result_sha, out.stats_json);
     std::error_code ec;
     fs::remove_all(JobDir(id) + "/scene", ec);
   }

@@ -11,12 +11,12 @@
 #include <string>
 #include <vector>
 
+#include "common/farm/job_types.h"
 #include "common/render/render_job.h"
 #include "common/render/serialize.h"
 #include "coordinator/blob_store.h"
 #include "coordinator/job_images.h"
 #include "coordinator/job_store.h"
-#include "lightfarm/v1/render.pb.h"
 
 namespace lightfarm {
 
@@ -64,13 +64,13 @@ class JobPlanner {
 
   // Plans job `id` and readies `stage` (its input is the previous stage's stored artifact).
   // Throws with a message for the user: scene errors name the file as submitted.
-  PlannedStage PlanStage(int64_t id, const v1::SceneManifest& manifest, const v1::RenderSettings& settings,
+  PlannedStage PlanStage(int64_t id, const SceneManifest& manifest, const RenderSettings& settings,
                          int stage);
   // Stage `stage`'s results (task order) combined into the next stage's input, stored first so
   // that a restarted coordinator resumes from it; the next stage's task rows are created.
   NextStage CombineStage(int64_t id, const Plan& plan, int stage, const std::vector<std::string>& result_shas);
   // Every stage's outputs (the store's order) into the film and the stats.
-  PassOutcome AssemblePass(int64_t id, const Plan& plan, const v1::RenderSettings& settings,
+  PassOutcome AssemblePass(int64_t id, const Plan& plan, const RenderSettings& settings,
                            const std::string& root, int final_stage, const std::vector<Bytes>& final_specs,
                            PhaseTimes times, double total_seconds);
   // An ordinary job's result: the EXR and the stats recorded, the job done, its scene removed.
@@ -87,7 +87,7 @@ class JobPlanner {
 
  private:
   std::string JobDir(int64_t id) const { return state_dir_ + "/jobs/" + std::to_string(id); }
-  void MaterializeScene(const v1::SceneManifest& manifest, const std::string& dir);
+  void MaterializeScene(const SceneManifest& manifest, const std::string& dir);
 
   std::string state_dir_;
   PlanLimits limits_;

@@ -232,15 +232,15 @@ int64_t JobStore::InsertJob(const JobRecord& j) {
   std::lock_guard lock(mu_);
   Stmt s(db_, "INSERT INTO jobs(name, priority, state, manifest, settings, created) "
               "VALUES(?, ?, ?, ?, ?, ?)");
-  s.Bind(j.name).Bind(j.priority).Bind(j.state).BindBlob(j.manifest).BindBlob(j.settings).Bind(Now()).Step();
+  s.Bind(j.name).Bind(j.priority).Bind(int(j.state)).BindBlob(j.manifest).BindBlob(j.settings).Bind(Now()).Step();
   return sqlite3_last_insert_rowid(db_);
 }
 
-void JobStore::SetJobState(int64_t id, int state, const std::string& error) {
+void JobStore::SetJobState(int64_t id, JobState state, const std::string& error) {
   std::lock_guard lock(mu_);
-  // A job that ends (done 4, failed 5, cancelled 6) records when: the retention policy counts from it.
-  Stmt(db_, "UPDATE jobs SET state = ?, error = ?, finished = CASE WHEN ? >= 4 THEN ? ELSE finished END WHERE id = ?")
-      .Bind(state).Bind(error).Bind(state).Bind(Now()).Bind(id).Step();
+  // A job that ends records when: the retention policy counts from it.
+  Stmt(db_, "UPDATE jobs SET state = ?, error = ?, finished = CASE WHEN ? THEN ? ELSE finished END WHERE id = ?")
+      .Bind(int(state)).Bind(error).Bind(int(IsTerminal(state))).Bind(Now()).Bind(id).Step();
 }
 
 void JobStore::SetJobStage(int64_t id, int stage) {
@@ -248,11 +248,11 @@ void JobStore::SetJobStage(int64_t id, int stage) {
   Stmt(db_, "UPDATE jobs SET stage = ? WHERE id = ?").Bind(stage).Bind(id).Step();
 }
 
-void JobStore::FinishJob(int64_t id, int state, const std::string& result_sha,
+void JobStore::FinishJob(int64_t id, JobState state, const std::string& result_sha,
                          const std::string& stats_json) {
   std::lock_guard lock(mu_);
   Stmt(db_, "UPDATE jobs SET state = ?, result_sha = ?, stats_json = ?, finished = ? WHERE id = ?")
-      .Bind(state).Bind(result_sha).Bind(stats_json).Bind(Now()).Bind(id).Step();
+      .Bind(int(state)).Bind(result_sha).Bind(stats_json).Bind(Now()).Bind(id).Step();
 }
 
 void JobStore::FinishPass(int64_t id, int next_pass, const std::string& accum_sha,
@@ -352,7 +352,7 @@ std::vector<JobRecord> JobStore::LoadJobs() {
     j.id = s.Int(0);
     j.name = s.Str(1);
     j.priority = int(s.Int(2));
-    j.state = int(s.Int(3));
+    j.state = JobState(int(s.Int(3)));
     j.manifest = s.Str(4);
     j.settings = s.Str(5);
     j.stage = int(s.Int(6));

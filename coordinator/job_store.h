@@ -11,6 +11,8 @@
 #include <string>
 #include <vector>
 
+#include "common/farm/job_types.h"
+
 struct sqlite3;
 struct sqlite3_stmt;
 
@@ -22,9 +24,9 @@ struct JobRecord {
   int64_t id = 0;
   std::string name;
   int priority = 0;
-  int state = 0;            // v1::JobState
-  std::string manifest;     // serialized v1::SceneManifest
-  std::string settings;     // serialized v1::RenderSettings
+  JobState state = JobState::kQueued;
+  std::string manifest;     // the request as submitted: serialized v1::SceneManifest
+  std::string settings;     // and serialized v1::RenderSettings
   int stage = 0;
   std::string error;
   double created = 0;       // unix seconds
@@ -52,9 +54,9 @@ class JobStore {
   JobStore& operator=(const JobStore&) = delete;
 
   int64_t InsertJob(const JobRecord& job);
-  void SetJobState(int64_t id, int state, const std::string& error);
+  void SetJobState(int64_t id, JobState state, const std::string& error);
   void SetJobStage(int64_t id, int stage);
-  void FinishJob(int64_t id, int state, const std::string& result_sha, const std::string& stats_json);
+  void FinishJob(int64_t id, JobState state, const std::string& result_sha, const std::string& stats_json);
   // A progressive job's pass finished: its accumulation and current result are recorded, and
   // the finished pass's tasks and artifacts give way to pass `next_pass`, stage 0 (one transaction).
   void FinishPass(int64_t id, int next_pass, const std::string& accum_sha, const std::string& result_sha,

@@ -40,21 +40,50 @@ RenderSettings FromProto(const v1::RenderSettings& p) {
   return s;
 }
 
-const char* JobStateName(v1::JobState state) {
+const char* JobStateName(JobState state) {
   switch (state) {
-    case v1::JOB_STATE_QUEUED: return "queued";
-    case v1::JOB_STATE_PLANNING: return "planning";
-    case v1::JOB_STATE_RUNNING: return "running";
-    case v1::JOB_STATE_DONE: return "done";
-    case v1::JOB_STATE_FAILED: return "failed";
-    case v1::JOB_STATE_CANCELLED: return "cancelled";
-    default: return "unknown";
+    case JobState::kQueued: return "queued";
+    case JobState::kPlanning: return "planning";
+    case JobState::kRunning: return "running";
+    case JobState::kDone: return "done";
+    case JobState::kFailed: return "failed";
+    case JobState::kCancelled: return "cancelled";
   }
+  return "unknown";
+}
+
+v1::JobState ToProto(JobState state) { return v1::JobState(int(state)); }
+
+JobState FromProto(v1::JobState state) {
+  return state == v1::JOB_STATE_UNSPECIFIED ? JobState::kQueued : JobState(int(state));
+}
+
+v1::SceneManifest ToProto(const SceneManifest& m) {
+  v1::SceneManifest p;
+  p.set_root(m.root);
+  for (const SceneFileRef& f : m.files) {
+    v1::SceneFile* file = p.add_files();
+    file->set_path(f.path);
+    file->set_sha256(f.sha256);
+  }
+  return p;
+}
+
+SceneManifest FromProto(const v1::SceneManifest& p) {
+  SceneManifest m;
+  m.root = p.root();
+  m.files.reserve(size_t(p.files_size()));
+  for (const v1::SceneFile& f : p.files()) m.files.push_back({f.path(), f.sha256()});
+  return m;
+}
+
+const char* JobStateName(v1::JobState state) {
+  return state >= v1::JOB_STATE_QUEUED && state <= v1::JOB_STATE_CANCELLED ? JobStateName(FromProto(state))
+                                                                            : "unknown";
 }
 
 bool IsTerminal(v1::JobState state) {
-  return state == v1::JOB_STATE_DONE || state == v1::JOB_STATE_FAILED ||
-         state == v1::JOB_STATE_CANCELLED;
+  return state >= v1::JOB_STATE_QUEUED && state <= v1::JOB_STATE_CANCELLED && IsTerminal(FromProto(state));
 }
 
 }  // namespace lightfarm

@@ -2,6 +2,7 @@
 // only generated protobuf messages, never gRPC; built into lightfarm_farm, not lightfarm_common.
 #pragma once
 
+#include "common/farm/job_types.h"
 #include "common/render/render_job.h"
 #include "lightfarm/v1/types.pb.h"
 
@@ -9,6 +10,11 @@ namespace lightfarm {
 
 v1::RenderSettings ToProto(const RenderSettings& s);
 RenderSettings FromProto(const v1::RenderSettings& p);
+
+v1::JobState ToProto(JobState state);
+JobState FromProto(v1::JobState state);  // UNSPECIFIED (no job has it) reads as queued
+v1::SceneManifest ToProto(const SceneManifest& m);
+SceneManifest FromProto(const v1::SceneManifest& m);
 
 const char* JobStateName(v1::JobState state);  // "queued", "running", ...
 bool IsTerminal(v1::JobState state);
