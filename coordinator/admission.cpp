@@ -12,8 +12,8 @@
 
 namespace lightfarm {
 
-void CheckSubmission(const v1::SubmitJobRequest& req, const AdmissionLimits& limits,
-                     const std::function<bool(const std::string& sha256)>& stored) {
+AdmittedJob CheckSubmission(const v1::SubmitJobRequest& req, const AdmissionLimits& limits,
+                            const std::function<bool(const std::string& sha256)>& stored) {
   using Code = FarmError::Code;
   // Validate the manifest: every file uploaded, every path inside the scene directory.
   const v1::SceneManifest& m = req.scene();
@@ -56,12 +56,13 @@ void CheckSubmission(const v1::SubmitJobRequest& req, const AdmissionLimits& lim
     throw FarmError(Code::kResourceExhausted, std::to_string(s.passes()) + " passes exceed the limit of 1000000");
   if (s.method_rule().size() > 4096)
     throw FarmError(Code::kInvalidArgument, "method_rule is longer than 4096 bytes");
+  AdmittedJob job{FromProto(m), FromProto(s)};
   try {
-    const RenderSettings settings = FromProto(s);
-    CheckGatherMethodOptions(settings.method, OptionMap::Parse(settings.params));
+    CheckGatherMethodOptions(job.settings.method, OptionMap::Parse(job.settings.params));
   } catch (const OptionError& e) {
     throw FarmError(Code::kInvalidArgument, e.what());
   }
+  return job;
 }
 
 }  // namespace lightfarm

@@ -9,6 +9,8 @@
 #include <functional>
 #include <string>
 
+#include "common/farm/job_types.h"
+#include "common/render/render_job.h"
 #include "coordinator/farm_error.h"
 #include "lightfarm/v1/render.pb.h"
 
@@ -20,8 +22,13 @@ struct AdmissionLimits {
   int max_spp = 4096;
 };
 
-// Throws FarmError naming what is wrong; `stored(sha)` says whether the blob store has a file.
-void CheckSubmission(const v1::SubmitJobRequest& request, const AdmissionLimits& limits,
-                     const std::function<bool(const std::string& sha256)>& stored);
+// The admitted job in the scheduler's plain types (converted once, here). Throws FarmError
+// naming what is wrong; `stored(sha)` says whether the blob store has a file.
+struct AdmittedJob {
+  SceneManifest manifest;
+  RenderSettings settings;
+};
+AdmittedJob CheckSubmission(const v1::SubmitJobRequest& request, const AdmissionLimits& limits,
+                            const std::function<bool(const std::string& sha256)>& stored);
 
 }  // namespace lightfarm

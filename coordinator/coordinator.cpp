@@ -215,8 +215,9 @@ std::string Coordinator::Submit(const v1::SubmitJobRequest& req) {
   if (storage_.full() || storage_.Low()) throw FarmError(Code::kResourceExhausted, storage_.FullMessage());
   // From the check that its files are stored to the job's insertion, no collection runs.
   std::lock_guard gc(gc_mu_);
-  CheckSubmission(req, AdmissionLimits{options_.max_resolution, options_.max_lights, options_.max_spp},
-                  [this](const std::string& sha) { return blobs_->Has(sha); });
+  AdmittedJob admitted =
+      CheckSubmission(req, AdmissionLimits{options_.max_resolution, options_.max_lights, options_.max_spp},
+                      [this](const std::string& sha) { return blobs_->Has(sha); });
   const v1::SceneManifest& m = req.scene();
   const v1::RenderSettings& s = req.settings();
   std::lock_guard lock(mu_);
@@ -240,8 +241,8 @@ std::string Coordinator::Submit(const v1::SubmitJobRequest& req) {
   }
   job.name = req.name();
   job.priority = req.priority();
-  job.manifest = FromProto(m);
-  job.settings = FromProto(s);
+  job.manifest = std::move(admitted.manifest);
+  job.settings = std::move(admitted.settings);
   job.passes = job.settings.progressive;
   if (job.passes.progressive()) job.acc = std::make_shared<const PassAccumulator>();
   const int64_t id = job.id;
