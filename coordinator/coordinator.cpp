@@ -267,69 +267,69 @@ Coordinator::Job& Coordinator::FindJob(const std::string& job_id) {
   return it->second;
 }
 
-v1::JobStatus Coordinator::StatusLocked(const Job& job) const {
-  v1::JobStatus st;
-  st.set_job_id(std::to_string(job.id));
-  st.set_state(ToProto(job.state));
-  st.set_name(job.name);
-  st.set_priority(job.priority);
-  st.set_method(job.settings.method);
-  st.set_stage(job.stage);
-  st.set_stage_count(job.stage_count);
-  st.set_stage_name(job.stage_name);
-  st.set_tasks_done(job.tasks_done);
-  st.set_tasks_total(job.tasks.size());
-  st.set_error(ValidUtf8(job.error));
-  st.set_attempts(job.attempts_total);
-  st.set_tasks_completed_total(job.completions_total);
-  st.set_tasks_verified(job.tasks_verified);
-  st.set_eta_s(-1);
+JobSnapshot Coordinator::StatusLocked(const Job& job) const {
+  JobSnapshot st;
+  st.job_id = std::to_string(job.id);
+  st.state = job.state;
+  st.name = job.name;
+  st.priority = job.priority;
+  st.method = job.settings.method;
+  st.stage = job.stage;
+  st.stage_count = job.stage_count;
+  st.stage_name = job.stage_name;
+  st.tasks_done = job.tasks_done;
+  st.tasks_total = job.tasks.size();
+  st.error = ValidUtf8(job.error);
+  st.attempts = job.attempts_total;
+  st.tasks_completed_total = job.completions_total;
+  st.tasks_verified = job.tasks_verified;
+  st.eta_s = -1;
   if (job.state == JobState::kRunning || job.state == JobState::kPlanning) {
     const auto now = Clock::now();
-    st.set_elapsed_s(Seconds(now - job.started));
+    st.elapsed_s = Seconds(now - job.started);
     if (job.state == JobState::kRunning)
-      st.set_eta_s(StageEtaSeconds(job.tasks_done, job.tasks.size(), job.done_at_stage_start,
-                                   job.stage + 1 == job.stage_count, Seconds(now - job.stage_started)));
+      st.eta_s = StageEtaSeconds(job.tasks_done, job.tasks.size(), job.done_at_stage_start,
+                                 job.stage + 1 == job.stage_count, Seconds(now - job.stage_started));
   } else if (job.state == JobState::kDone) {
-    st.set_eta_s(0);
+    st.eta_s = 0;
   }
   // A job that ended under this coordinator: how long it ran (one restored from the store: 0).
   if (IsTerminal(job.state) && job.ended > job.started && job.started != Clock::time_point{})
-    st.set_elapsed_s(Seconds(job.ended - job.started));
-  st.set_scene(job.manifest.root);
-  st.set_scene_sha256(job.manifest.RootSha256());
+    st.elapsed_s = Seconds(job.ended - job.started);
+  st.scene = job.manifest.root;
+  st.scene_sha256 = job.manifest.RootSha256();
   if (job.passes.progressive()) ProgressiveStatus(job, &st);
   if (!IsTerminal(job.state) && storage_.full())
-    st.set_waiting(storage_.FullMessage());
+    st.waiting = storage_.FullMessage();
   else
-    st.set_waiting(WaitingReasonLocked(job));
+    st.waiting = WaitingReasonLocked(job);
   return st;
 }
 
-void Coordinator::ProgressiveStatus(const Job& job, v1::JobStatus* st) const {
+void Coordinator::ProgressiveStatus(const Job& job, JobSnapshot* st) const {
   const uint32_t done = job.acc ? job.acc->passes() : 0;
-  st->set_progressive(true);
-  st->set_passes_done(done);
-  st->set_passes_total(job.passes.passes);
-  st->set_noise_rel_stderr(std::isfinite(job.noise.rel_stderr) ? job.noise.rel_stderr : -1);
-  st->set_noise_p90_rel_stderr(std::isfinite(job.noise.p90_rel_stderr) ? job.noise.p90_rel_stderr : -1);
+  st->progressive = true;
+  st->passes_done = done;
+  st->passes_total = job.passes.passes;
+  st->noise_rel_stderr = std::isfinite(job.noise.rel_stderr) ? job.noise.rel_stderr : -1;
+  st->noise_p90_rel_stderr = std::isfinite(job.noise.p90_rel_stderr) ? job.noise.p90_rel_stderr : -1;
   if (IsTerminal(job.state) || done == 0) return;  // the first pass's ETA is the stage's (above)
-  st->set_eta_s(PassesEtaSeconds(job.passes, *job.acc, job.noise, Seconds(Clock::now() - job.pass_started)));
+  st->eta_s = PassesEtaSeconds(job.passes, *job.acc, job.noise, Seconds(Clock::now() - job.pass_started));
 }
 
-v1::JobStatus Coordinator::GetJob(const std::string& job_id) {
+JobSnapshot Coordinator::GetJob(const std::string& job_id) {
   std::lock_guard lock(mu_);
   return StatusLocked(FindJob(job_id));
 }
 
-std::vector<v1::JobStatus> Coordinator::ListJobs() {
+std::vector<JobSnapshot> Coordinator::ListJobs() {
   std::lock_guard lock(mu_);
-  std::vector<v1::JobStatus> out;
+  std::vector<JobSnapshot> out;
   for (const auto& [id, job] : jobs_) out.push_back(StatusLocked(job));
   return out;
 }
 
-v1::JobStatus Coordinator::Cancel(const std::string& job_id) {
+JobSnapshot Coordinator::Cancel(const std::string& job_id) {
   std::lock_guard lock(mu_);
   Job& job = FindJob(job_id);
   if (!IsTerminal(job.state)) {
@@ -345,7 +345,7 @@ v1::JobStatus Coordinator::Cancel(const std::string& job_id) {
   return StatusLocked(job);
 }
 
-v1::JobStatus Coordinator::SetPriority(const std::string& job_id, int priority) {
+JobSnapshot Coordinator::SetPriority(const std::string& job_id, int priority) {
   std::lock_guard lock(mu_);
   Job& job = FindJob(job_id);
   if (IsTerminal(job.state))
@@ -365,42 +365,42 @@ void Coordinator::SeenLocked(const std::string& worker_id) {
   w.last_seen = Clock::now();
 }
 
-std::vector<v1::WorkerStatus> Coordinator::ListWorkers() {
+std::vector<WorkerSnapshot> Coordinator::ListWorkers() {
   std::lock_guard lock(mu_);
   const auto now = Clock::now();
-  std::vector<std::pair<double, v1::WorkerStatus>> rows;
+  std::vector<std::pair<double, WorkerSnapshot>> rows;
   for (const auto& [id, w] : workers_) {
     if (!w.seen) continue;
-    v1::WorkerStatus st;
-    st.set_worker_id(id);
-    st.set_name(w.name);
-    st.set_version(w.version);
-    st.set_threads(w.threads);
+    WorkerSnapshot st;
+    st.worker_id = id;
+    st.name = w.name;
+    st.version = w.version;
+    st.threads = w.threads;
     const double ago = Seconds(now - w.last_seen);
-    st.set_last_seen_s(ago);
-    st.set_alive(ago < 2.0 * options_.lease_timeout_s);
-    st.set_tasks_done(w.tasks_done);
-    st.set_tasks_failed(w.tasks_failed);
-    st.set_blocklisted(w.blocklisted);
+    st.last_seen_s = ago;
+    st.alive = ago < 2.0 * options_.lease_timeout_s;
+    st.tasks_done = w.tasks_done;
+    st.tasks_failed = w.tasks_failed;
+    st.blocklisted = w.blocklisted;
     // The lease it was granted, while the task is still its own (an expired one was re-queued).
     LeaseRef ref;
     Job* job = nullptr;
     if (!w.lease.empty() && ParseLease(w.lease, &ref)) {
       const Task* task = FindTaskLocked(ref, &job);
       if (task && task->state == TaskStateCode::kLeased && task->worker == id) {
-        st.set_lease_id(w.lease);
-        st.set_job_id(std::to_string(ref.job));
+        st.lease_id = w.lease;
+        st.job_id = std::to_string(ref.job);
       }
     }
     for (const auto& [job_id, j] : jobs_) {
       auto f = j.worker_failures.find(id);
       if (!IsTerminal(j.state) && f != j.worker_failures.end() && f->second >= options_.max_attempts)
-        st.add_blocked_jobs(std::to_string(job_id));
+        st.blocked_jobs.push_back(std::to_string(job_id));
     }
     rows.emplace_back(ago, std::move(st));
   }
   std::stable_sort(rows.begin(), rows.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
-  std::vector<v1::WorkerStatus> out;
+  std::vector<WorkerSnapshot> out;
   for (auto& [ago, st] : rows) out.push_back(std::move(st));
   return out;
 }

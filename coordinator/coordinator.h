@@ -30,6 +30,7 @@
 #include "coordinator/job_images.h"
 #include "coordinator/job_planner.h"
 #include "coordinator/job_progress.h"
+#include "coordinator/job_snapshot.h"
 #include "coordinator/job_store.h"
 #include "coordinator/storage_guard.h"
 #include "coordinator/thread_pool.h"
@@ -114,13 +115,13 @@ class Coordinator {
   // --- client API ---
   std::vector<std::string> FindMissingBlobs(const std::vector<std::string>& hashes) const;
   std::string Submit(const v1::SubmitJobRequest& request);
-  v1::JobStatus GetJob(const std::string& job_id);
-  std::vector<v1::JobStatus> ListJobs();
-  v1::JobStatus Cancel(const std::string& job_id);
+  JobSnapshot GetJob(const std::string& job_id);
+  std::vector<JobSnapshot> ListJobs();
+  JobSnapshot Cancel(const std::string& job_id);
   // FAILED_PRECONDITION once the job has ended.
-  v1::JobStatus SetPriority(const std::string& job_id, int priority);
+  JobSnapshot SetPriority(const std::string& job_id, int priority);
   // Workers registered or seen since this coordinator started, most recently seen first.
-  std::vector<v1::WorkerStatus> ListWorkers();
+  std::vector<WorkerSnapshot> ListWorkers();
   JobResult GetResult(const std::string& job_id);
   // Forgets a job (cancelled first when unfinished): its rows, result and scratch files; its
   // blobs go at the next collection. NOT_FOUND for an unknown job.
@@ -229,8 +230,8 @@ class Coordinator {
   };
 
   Job& FindJob(const std::string& job_id);  // throws NOT_FOUND; caller holds mu_
-  v1::JobStatus StatusLocked(const Job& job) const;
-  void ProgressiveStatus(const Job& job, v1::JobStatus* st) const;
+  JobSnapshot StatusLocked(const Job& job) const;
+  void ProgressiveStatus(const Job& job, JobSnapshot* st) const;
   static bool ParseLease(const std::string& lease_id, LeaseRef* ref);
   Task* FindTaskLocked(const LeaseRef& ref, Job** job);
   // Worker calls on a lease: NOT_FOUND for a worker or job the coordinator does not know,

@@ -44,49 +44,49 @@ namespace {
 
 constexpr const char* kCookie = "lightfarm_session";
 
-json JobJson(const v1::JobStatus& st) {
-  json j = {{"id", st.job_id()},
-            {"name", st.name()},
-            {"scene", st.scene()},
-            {"scene_sha256", st.scene_sha256()},
-            {"state", JobStateName(st.state())},
-            {"method", st.method()},
-            {"priority", st.priority()},
-            {"stage", st.stage()},
-            {"stage_count", st.stage_count()},
-            {"stage_name", st.stage_name()},
-            {"tasks_done", st.tasks_done()},
-            {"tasks_total", st.tasks_total()},
-            {"elapsed_s", st.elapsed_s()},
-            {"eta_s", st.eta_s()},
-            {"attempts", st.attempts()},
-            {"tasks_completed_total", st.tasks_completed_total()},
-            {"error", st.error()},
-            {"waiting", st.waiting()},
-            {"tasks_verified", st.tasks_verified()},
-            {"progressive", st.progressive()}};
-  if (st.progressive()) {
-    j["passes_done"] = st.passes_done();
-    j["passes_total"] = st.passes_total();
-    j["noise_rel_stderr"] = st.noise_rel_stderr();
-    j["noise_p90_rel_stderr"] = st.noise_p90_rel_stderr();
+json JobJson(const JobSnapshot& st) {
+  json j = {{"id", st.job_id},
+            {"name", st.name},
+            {"scene", st.scene},
+            {"scene_sha256", st.scene_sha256},
+            {"state", JobStateName(st.state)},
+            {"method", st.method},
+            {"priority", st.priority},
+            {"stage", st.stage},
+            {"stage_count", st.stage_count},
+            {"stage_name", st.stage_name},
+            {"tasks_done", st.tasks_done},
+            {"tasks_total", st.tasks_total},
+            {"elapsed_s", st.elapsed_s},
+            {"eta_s", st.eta_s},
+            {"attempts", st.attempts},
+            {"tasks_completed_total", st.tasks_completed_total},
+            {"error", st.error},
+            {"waiting", st.waiting},
+            {"tasks_verified", st.tasks_verified},
+            {"progressive", st.progressive}};
+  if (st.progressive) {
+    j["passes_done"] = st.passes_done;
+    j["passes_total"] = st.passes_total;
+    j["noise_rel_stderr"] = st.noise_rel_stderr;
+    j["noise_p90_rel_stderr"] = st.noise_p90_rel_stderr;
   }
   return j;
 }
 
-json WorkerJson(const v1::WorkerStatus& w) {
-  return {{"id", w.worker_id()},
-          {"name", w.name()},
-          {"version", w.version()},
-          {"threads", w.threads()},
-          {"lease_id", w.lease_id()},
-          {"job_id", w.job_id()},
-          {"last_seen_s", w.last_seen_s()},
-          {"alive", w.alive()},
-          {"tasks_done", w.tasks_done()},
-          {"tasks_failed", w.tasks_failed()},
-          {"blocked_jobs", std::vector<std::string>(w.blocked_jobs().begin(), w.blocked_jobs().end())},
-          {"blocklisted", w.blocklisted()}};
+json WorkerJson(const WorkerSnapshot& w) {
+  return {{"id", w.worker_id},
+          {"name", w.name},
+          {"version", w.version},
+          {"threads", w.threads},
+          {"lease_id", w.lease_id},
+          {"job_id", w.job_id},
+          {"last_seen_s", w.last_seen_s},
+          {"alive", w.alive},
+          {"tasks_done", w.tasks_done},
+          {"tasks_failed", w.tasks_failed},
+          {"blocked_jobs", w.blocked_jobs},
+          {"blocklisted", w.blocklisted}};
 }
 
 int HttpStatusOf(FarmError::Code code) {
@@ -313,20 +313,20 @@ void HttpServer::Routes() {
   s.Get("/api/v1/jobs", [this](const httplib::Request&, httplib::Response& res) {
     Guarded(res, [&] {
       json jobs = json::array();
-      const std::vector<v1::JobStatus> all = c_.ListJobs();
+      const std::vector<JobSnapshot> all = c_.ListJobs();
       for (auto it = all.rbegin(); it != all.rend(); ++it) jobs.push_back(JobJson(*it));  // newest first
       SendJson(res, json{{"jobs", jobs}});
     });
   });
   s.Get(R"(/api/v1/jobs/(\d+))", [this](const httplib::Request& req, httplib::Response& res) {
     Guarded(res, [&] {
-      const v1::JobStatus st = c_.GetJob(req.matches[1]);
+      const JobSnapshot st = c_.GetJob(req.matches[1]);
       json j = JobJson(st);
       j["stats"] = nullptr;
-      const bool partial = st.progressive() && st.passes_done() > 0;
-      if (st.state() == v1::JOB_STATE_DONE || partial) {
+      const bool partial = st.progressive && st.passes_done > 0;
+      if (st.state == JobState::kDone || partial) {
         try {
-          j["stats"] = json::parse(c_.GetResult(st.job_id()).stats_json);
+          j["stats"] = json::parse(c_.GetResult(st.job_id).stats_json);
           j["has_result"] = true;
         } catch (const std::exception&) {
           j["has_result"] = false;
@@ -412,7 +412,7 @@ void HttpServer::Routes() {
   s.Get("/api/v1/workers", [this](const httplib::Request&, httplib::Response& res) {
     Guarded(res, [&] {
       json workers = json::array();
-      for (const v1::WorkerStatus& w : c_.ListWorkers()) workers.push_back(WorkerJson(w));
+      for (const WorkerSnapshot& w : c_.ListWorkers()) workers.push_back(WorkerJson(w));
       SendJson(res, json{{"workers", workers}});
     });
   });

@@ -15,6 +15,55 @@ namespace lightfarm {
 
 namespace {
 
+// The scheduler's reports on the wire.
+v1::JobStatus ToProto(const JobSnapshot& j) {
+  v1::JobStatus st;
+  st.set_job_id(j.job_id);
+  st.set_state(lightfarm::ToProto(j.state));
+  st.set_name(j.name);
+  st.set_priority(j.priority);
+  st.set_method(j.method);
+  st.set_stage(j.stage);
+  st.set_stage_count(j.stage_count);
+  st.set_stage_name(j.stage_name);
+  st.set_tasks_done(j.tasks_done);
+  st.set_tasks_total(j.tasks_total);
+  st.set_elapsed_s(j.elapsed_s);
+  st.set_eta_s(j.eta_s);
+  st.set_error(j.error);
+  st.set_attempts(j.attempts);
+  st.set_tasks_completed_total(j.tasks_completed_total);
+  st.set_tasks_verified(j.tasks_verified);
+  st.set_scene(j.scene);
+  st.set_scene_sha256(j.scene_sha256);
+  st.set_waiting(j.waiting);
+  if (j.progressive) {
+    st.set_progressive(true);
+    st.set_passes_done(j.passes_done);
+    st.set_passes_total(j.passes_total);
+    st.set_noise_rel_stderr(j.noise_rel_stderr);
+    st.set_noise_p90_rel_stderr(j.noise_p90_rel_stderr);
+  }
+  return st;
+}
+
+v1::WorkerStatus ToProto(const WorkerSnapshot& w) {
+  v1::WorkerStatus st;
+  st.set_worker_id(w.worker_id);
+  st.set_name(w.name);
+  st.set_version(w.version);
+  st.set_threads(w.threads);
+  st.set_lease_id(w.lease_id);
+  st.set_job_id(w.job_id);
+  st.set_last_seen_s(w.last_seen_s);
+  st.set_alive(w.alive);
+  st.set_tasks_done(w.tasks_done);
+  st.set_tasks_failed(w.tasks_failed);
+  for (const std::string& job : w.blocked_jobs) st.add_blocked_jobs(job);
+  st.set_blocklisted(w.blocklisted);
+  return st;
+}
+
 grpc::Status ToStatus(const FarmError& e) {
   using C = FarmError::Code;
   switch (e.code()) {
@@ -171,7 +220,7 @@ class WatchReactor : public grpc::ServerWriteReactor<v1::JobStatus> {
       return;
     }
     v1::JobStatus st;
-    grpc::Status status = Guard([&] { st = hub_->coordinator().GetJob(job_id_); });
+    grpc::Status status = Guard([&] { st = ToProto(hub_->coordinator().GetJob(job_id_)); });
     if (!status.ok()) {
       finished_ = true;
       Finish(status);
@@ -407,12 +456,12 @@ class FarmServer::RenderServiceImpl final : public v1::RenderService::CallbackSe
   }
   grpc::ServerUnaryReactor* GetJob(grpc::CallbackServerContext* ctx, const v1::GetJobRequest* req,
                                    v1::JobStatus* resp) override {
-    return Unary(ctx, [this, req, resp] { *resp = c_.GetJob(req->job_id()); });
+    return Unary(ctx, [this, req, resp] { *resp = ToProto(c_.GetJob(req->job_id())); });
   }
   grpc::ServerUnaryReactor* ListJobs(grpc::CallbackServerContext* ctx, const v1::ListJobsRequest*,
                                      v1::ListJobsResponse* resp) override {
     return Unary(ctx, [this, resp] {
-      for (v1::JobStatus& s : c_.ListJobs()) *resp->add_jobs() = std::move(s);
+      for (const JobSnapshot& s : c_.ListJobs()) *resp->add_jobs() = ToProto(s);
     });
   }
   grpc::ServerUnaryReactor* DeleteJob(grpc::CallbackServerContext* ctx, const v1::GetJobRequest* req,
@@ -422,16 +471,16 @@ class FarmServer::RenderServiceImpl final : public v1::RenderService::CallbackSe
 
   grpc::ServerUnaryReactor* CancelJob(grpc::CallbackServerContext* ctx, const v1::GetJobRequest* req,
                                       v1::JobStatus* resp) override {
-    return Unary(ctx, [this, req, resp] { *resp = c_.Cancel(req->job_id()); });
+    return Unary(ctx, [this, req, resp] { *resp = ToProto(c_.Cancel(req->job_id())); });
   }
   grpc::ServerUnaryReactor* SetJobPriority(grpc::CallbackServerContext* ctx, const v1::SetJobPriorityRequest* req,
                                            v1::JobStatus* resp) override {
-    return Unary(ctx, [this, req, resp] { *resp = c_.SetPriority(req->job_id(), req->priority()); });
+    return Unary(ctx, [this, req, resp] { *resp = ToProto(c_.SetPriority(req->job_id(), req->priority())); });
   }
   grpc::ServerUnaryReactor* ListWorkers(grpc::CallbackServerContext* ctx, const v1::ListWorkersRequest*,
                                         v1::ListWorkersResponse* resp) override {
     return Unary(ctx, [this, resp] {
-      for (v1::WorkerStatus& w : c_.ListWorkers()) *resp->add_workers() = std::move(w);
+      for (const WorkerSnapshot& w : c_.ListWorkers()) *resp->add_workers() = ToProto(w);
     });
   }
 
