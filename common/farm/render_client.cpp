@@ -44,17 +44,21 @@ std::string RenderClient::UploadBlob(const std::string& data) {
 }
 
 v1::SceneManifest RenderClient::UploadScene(const std::string& scene_path, bool strict) {
-  // Every file the scene reads, relative to their deepest common directory.
+  // Every file the scene reads, relative to their deepest common directory. Paths stay as the
+  // scene names them (made absolute, "." and ".." removed), symbolic links unresolved: a mesh
+  // linked in from elsewhere keeps its place beside the file that names it.
+  const auto as_named = [](const fs::path& p) { return fs::absolute(p).lexically_normal(); };
   std::vector<fs::path> files;
   try {
     // A file the scene names but that does not exist (a missing PLY) is not uploaded: building
     // the scene then fails with the directive's file:line, not with a hashing error.
     for (const std::string& f : ParseSceneFile(scene_path).files)
-      if (fs::is_regular_file(f)) files.push_back(fs::weakly_canonical(f));
+      if (fs::is_regular_file(f) && std::find(files.begin(), files.end(), as_named(f)) == files.end())
+        files.push_back(as_named(f));
   } catch (const SceneError&) {
     if (strict) throw;
   }
-  const fs::path root = fs::weakly_canonical(scene_path);
+  const fs::path root = as_named(scene_path);
   if (std::find(files.begin(), files.end(), root) == files.end()) files.insert(files.begin(), root);
   fs::path base = root.parent_path();
   for (const fs::path& f : files) {

@@ -107,6 +107,23 @@ TEST(Farm, EveryMethodOnTheEmbeddedFarmMatchesTheDirectRender) {
   }
 }
 
+// A scene whose files are symbolic links to elsewhere (a shared asset library) renders as the
+// real files do: the upload keeps each file where the scene names it.
+TEST(Farm, SymlinkedSceneFilesRenderAsTheFilesThemselves) {
+  TempDir real, linked;
+  const std::string header = kTinyScene.substr(0, kTinyScene.size() - kQuad.size());
+  real.Write("scene.pbrt", header + "Include \"geometry.pbrt\"\n");
+  real.Write("geometry.pbrt", kQuad);
+  linked.Write("scene.pbrt", header + "Include \"geometry.pbrt\"\n");
+  std::filesystem::create_symlink(real.Path("geometry.pbrt"), linked.Path("geometry.pbrt"));
+  RenderSettings s;
+  s.lights = 50;
+  const EmbeddedRender a = RenderOnEmbeddedFarm(real.Path("scene.pbrt"), s, 1);
+  const EmbeddedRender b = RenderOnEmbeddedFarm(linked.Path("scene.pbrt"), s, 1);
+  EXPECT_TRUE(SameBits(a.image, b.image));
+  EXPECT_GT(a.image.MeanLuminance(), 0.0);
+}
+
 // Renders `scene` on a coordinator process with two worker processes (`lightfarm submit --wait`
 // with `args`, written as NAME.exr and NAME.json in `dir`): the farm's image and stats.
 struct FarmRender {
