@@ -18,12 +18,7 @@ set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 shared=${LIGHTFARM_SHARED:-$(cd "$root/.." && pwd)/shared}
 . "$root/scripts/report-lib.sh"
-build=${LIGHTFARM_BUILD:-$root/build}
-bash "$root/scripts/build.sh" "$build" >/dev/null
-lf="$build/lightfarm"
-py=/usr/bin/python3
-work=$(mktemp -d)
-trap 'rm -rf "$work"' EXIT
+report_begin
 out="$root/docs/clamp.md"
 seeds=(0 1 2 3 4)
 

@@ -13,3 +13,14 @@ repo_relative() {
   fi
   sed -i "${args[@]}" "$@"
 }
+
+# report_begin: builds lightfarm (its output hidden) and sets $build, $lf (the binary), $py
+# (Debian's Python, which has OpenImageIO's module) and $work (a directory removed on exit).
+report_begin() {
+  build=${LIGHTFARM_BUILD:-$root/build}
+  bash "$root/scripts/build.sh" "$build" >/dev/null
+  lf="$build/lightfarm"
+  py=/usr/bin/python3
+  work=$(mktemp -d)
+  trap 'rm -rf "$work"' EXIT
+}
