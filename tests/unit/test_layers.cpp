@@ -38,14 +38,14 @@ struct Layers {
   // Everything `target` links, directly or through lightfarm targets, itself included.
   std::set<std::string> Closure(const std::string& target) const {
     std::set<std::string> seen = {target};
-    std::vector<std::string> todo = {target};
-    while (!todo.empty()) {
-      const std::string t = todo.back();
-      todo.pop_back();
+    std::vector<std::string> pending = {target};
+    while (!pending.empty()) {
+      const std::string t = pending.back();
+      pending.pop_back();
       const auto it = links.find(t);
       if (it == links.end()) continue;
       for (const std::string& l : it->second)
-        if (seen.insert(l).second) todo.push_back(l);
+        if (seen.insert(l).second) pending.push_back(l);
     }
     return seen;
   }
