@@ -52,9 +52,11 @@ v1::SceneManifest RenderClient::UploadScene(const std::string& scene_path, bool 
   try {
     // A file the scene names but that does not exist (a missing PLY) is not uploaded: building
     // the scene then fails with the directive's file:line, not with a hashing error.
-    for (const std::string& f : ParseSceneFile(scene_path).files)
-      if (fs::is_regular_file(f) && std::find(files.begin(), files.end(), as_named(f)) == files.end())
-        files.push_back(as_named(f));
+    for (const std::string& f : ParseSceneFile(scene_path).files) {
+      const fs::path named = as_named(f);
+      if (fs::is_regular_file(named) && std::find(files.begin(), files.end(), named) == files.end())
+        files.push_back(named);
+    }
   } catch (const SceneError&) {
     if (strict) throw;
   }

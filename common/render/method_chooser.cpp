@@ -108,8 +108,8 @@ std::vector<MethodMeasurement> Measure(const std::vector<BenchRow>& rows) {
         a.rays = s.shadow_rays_per_pixel;
       }
     }
+  // A measurement at the method's defaults carries no parameters, and wins over any other.
   std::map<std::string, MethodMeasurement> chosen;
-  std::map<std::string, bool> chosen_is_default;
   for (const auto& [key, a] : acc) {
     const auto& [method, setting] = key;
     if (!Registered(method)) continue;
@@ -117,12 +117,13 @@ std::vector<MethodMeasurement> Measure(const std::vector<BenchRow>& rows) {
     const bool is_default = IsMethodDefault(method, params);
     MethodMeasurement m{method, setting, is_default ? std::vector<std::string>{} : params, a.worst, a.rays};
     const auto it = chosen.find(method);
-    const bool better = it == chosen.end() || (is_default && !chosen_is_default[method]) ||
-                        (is_default == chosen_is_default[method] && m.rel_l2 < it->second.rel_l2);
-    if (better) {
-      chosen[method] = m;
-      chosen_is_default[method] = is_default;
+    if (it == chosen.end()) {
+      chosen.emplace(method, std::move(m));
+      continue;
     }
+    const bool was_default = it->second.params.empty();
+    if ((is_default && !was_default) || (is_default == was_default && m.rel_l2 < it->second.rel_l2))
+      it->second = std::move(m);
   }
   std::vector<MethodMeasurement> out;
   for (const GatherMethodInfo& info : GatherMethods())  // registry order
