@@ -1,7 +1,8 @@
 // Trust no worker blindly: a fake worker process that speaks the worker protocol and lies (wrong
 // numbers of the right shape, NaN, or failures) beside honest workers. Verified tasks outvote
 // it and it is blocklisted farm-wide; NaN results are refused; a job that no live worker may run
-// fails saying why instead of running forever.
+// fails saying why instead of running forever; a lease lost to a stall is not held against the
+// worker.
 #include <gtest/gtest.h>
 
 #include <nlohmann/json.hpp>
@@ -122,6 +123,60 @@ TEST(FarmVerification, AJobNoLiveWorkerMayRunFailsSayingWhy) {
   EXPECT_NE(st.error().find("every live worker (1)"), std::string::npos) << st.error();
   EXPECT_NE(st.error().find("injected failure"), std::string::npos) << st.error();
   EXPECT_TRUE(coordinator.process().running());
+}
+
+// A worker stalled past its lease (SIGSTOP: what a slow or partitioned network looks like to the
+// coordinator) loses the lease, but an expiry is no evidence against the worker: with
+// --max-attempts 1, counting it as a failure would keep the only worker off the job and fail it.
+// The job waits for a live worker, finishes with the embedded render's bits once the worker
+// resumes, and the worker has no failure and no block.
+TEST(FarmVerification, AnExpiredLeaseIsNotTheWorkersFault) {
+  TempDir dir;
+  CoordinatorProcess coordinator(dir, dir.Path("state"), {"--max-attempts", "1", "--lease-timeout", "1"});
+  RenderClient client = coordinator.Client();
+  auto worker = StartWorker(dir, coordinator.address());
+  WaitForWorkers(client, 1);
+  const std::vector<std::string> job_args = {"--method", "brute", "--resolution", "48x48", "--lights", "2000",
+                                             "--seed", "9", "--param", "rows_per_slice=128"};
+  std::vector<std::string> submit = {"submit", ExampleCornellBox(), "--server", coordinator.address()};
+  submit.insert(submit.end(), job_args.begin(), job_args.end());
+  CliResult r = RunCli(dir, submit);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  std::string job = r.out;
+  while (!job.empty() && job.back() == '\n') job.pop_back();
+
+  // Stop the worker while it holds a lease.
+  bool stopped = false;
+  const auto end = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+  while (!stopped && std::chrono::steady_clock::now() < end) {
+    for (const v1::WorkerStatus& w : client.ListWorkers())
+      if (w.name() == worker->name && !w.lease_id().empty()) {
+        worker->Kill(SIGSTOP);
+        stopped = true;
+      }
+    if (!stopped) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  ASSERT_TRUE(stopped) << "the worker never held a lease";
+  std::this_thread::sleep_for(std::chrono::milliseconds(3000));
+  v1::JobStatus st = client.GetJob(job);
+  EXPECT_EQ(st.state(), v1::JOB_STATE_RUNNING) << st.error();
+  EXPECT_EQ(st.waiting(), "no live worker is connected");
+  worker->Kill(SIGCONT);
+  st = WaitForJob(client, job, [](const v1::JobStatus& s) { return s.state() != v1::JOB_STATE_RUNNING; }, 120);
+  ASSERT_EQ(st.state(), v1::JOB_STATE_DONE) << st.error();
+  EXPECT_NE(coordinator.process().err().find("lease expired"), std::string::npos) << "the stall expired no lease";
+  for (const v1::WorkerStatus& w : client.ListWorkers()) {
+    EXPECT_EQ(w.tasks_failed(), 0u) << w.DebugString();
+    EXPECT_TRUE(w.blocked_jobs().empty()) << w.DebugString();
+    EXPECT_TRUE(w.blocklisted().empty()) << w.DebugString();
+  }
+  CliResult f = RunCli(dir, {"fetch", job, "--server", coordinator.address(), "--out", dir.Path("farm.exr")});
+  ASSERT_EQ(f.exit_code, 0) << f.err;
+  std::vector<std::string> render = {"render", ExampleCornellBox(), "--quiet", "--out", dir.Path("embedded.exr")};
+  render.insert(render.end(), job_args.begin(), job_args.end());
+  CliResult e = RunCli(dir, render);
+  ASSERT_EQ(e.exit_code, 0) << e.err;
+  EXPECT_TRUE(SameBits(ReadImage(dir.Path("farm.exr")), ReadImage(dir.Path("embedded.exr"))));
 }
 
 }  // namespace test_farm_verification
