@@ -261,6 +261,7 @@ FilterSampler::FilterSampler(const Filter& filter, int samples_per_unit)
       f_[static_cast<size_t>(y) * nx_ + x] = filter.Evaluate({px, py});
     }
   }
+  for (float f : f_) positive_ = positive_ && !(f < 0.f);
 
   // Conditional CDFs of |f| along each row, and the marginal CDF of the row sums.
   row_cdf_.assign(static_cast<size_t>(ny_) * (nx_ + 1), 0.0);

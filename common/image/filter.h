@@ -78,6 +78,8 @@ class FilterSampler {
   // Density of Sample() at p, per unit area of offset; 0 outside the support.
   float Pdf(Vec2 p) const;
   Vec2 radius() const { return radius_; }
+  // Whether every sample's weight is positive (no negative lobe in the tabulated filter).
+  bool positive() const { return positive_; }
 
  private:
   int CellX(float x) const;
@@ -90,6 +92,7 @@ class FilterSampler {
   std::vector<double> marginal_cdf_;  // ny_+1 entries of the CDF of row sums of |f|
   double abs_sum_ = 0;                // Σ |f_tab| over all cells
   float cell_area_ = 0;               // area of one cell, pixels²
+  bool positive_ = true;
 };
 
 }  // namespace lightfarm

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <array>
+#include <numeric>
 #include <optional>
 #include <span>
 
@@ -649,14 +650,126 @@ class CameraSideActivity {
   std::vector<EmitterBound> emitters_;
 };
 
+// Whether two coverage paths end on what shades alike (ReceiverOptions::coverage): the same
+// material at the same depth, normals within ~18°, and neither stepped off the other's plane (a
+// step between parallel faces moves one along the other's normal). Symmetric, so the groups
+// depend only on the set of paths; only the variance depends on this test.
+bool SameSurface(const ShadingPoint& a, const ShadingPoint& b) {
+  if (a.material != b.material || a.depth != b.depth || a.medium_out != b.medium_out ||
+      a.medium_in != b.medium_in)
+    return false;
+  if (Dot(a.ns, b.ns) < 0.95f) return false;
+  const Vec3 d = b.p - a.p;
+  const float step = 0.25f * Length(d);
+  return std::abs(Dot(d, a.ng)) <= step && std::abs(Dot(d, b.ng)) <= step;
+}
+
+bool SameWay(const std::vector<ShadingPoint>& a, const std::vector<ShadingPoint>& b) {
+  if (a.size() != b.size()) return false;
+  for (size_t i = 0; i < a.size(); ++i)
+    if (!SameSurface(a[i], b[i])) return false;
+  return true;
+}
+
+// One receiver sample from its K coverage paths (ReceiverOptions::coverage), of equal positive
+// filter weights w_j (FilterSampler: |w| is the same for every sample). Path 0 is the sample's
+// own film position, the others the pixel-sized lattice shifted by it (CoverageLattice), so given
+// the set of K positions each is path 0 with probability 1/K. With W = Σ w_j the sample gets
+// weight W/K and emission Σ w_j E_j / W: Film's Σ w (E + G) / Σ w sees (1/K) Σ w_j E_j, as K
+// samples would give. The paths are grouped (SameWay); group g, of weight W_g, keeps the points
+// of one path r, their throughput scaled by W_g / W: path 0 in its own group, elsewhere one
+// chosen with probability w_r / W_g (weighted reservoir). Given the set, path 0's group is g with
+// probability W_g / W, so E[share of g · G_r] = Σ_g (W_g/W)² Ḡ_g + (1 − W_g/W)(W_g/W) Ḡ_g
+// = (1/K) Σ_j w_j G_j (Ḡ_g the group's mean): unbiased, one receiver per group, and where the
+// pixel is one surface the receiver is the sample's own, as without coverage (so spp samples keep
+// their stratification).
+struct CoveragePath {
+  float weight = 0;
+  RGB emitted;
+  std::vector<ShadingPoint> points;
+};
+
+void MergeCoverage(std::vector<CoveragePath>& paths, Rng& rng, CameraSample* cs,
+                   std::vector<ShadingPoint>* points) {
+  double total = 0, e[3] = {0, 0, 0};
+  for (const CoveragePath& c : paths) {
+    const double w = double(c.weight);
+    total += w;
+    e[0] += w * double(c.emitted.r), e[1] += w * double(c.emitted.g), e[2] += w * double(c.emitted.b);
+  }
+  cs->weight = float(total / double(paths.size()));
+  if (!(total > 0)) return;
+  cs->emitted = RGB(float(e[0] / total), float(e[1] / total), float(e[2] / total));
+  struct Group {
+    size_t chosen;
+    double weight;
+  };
+  // The groups are the connected parts of SameWay over all pairs: a function of the set of
+  // paths, not of which one is path 0 (the argument above needs that).
+  const size_t k = paths.size();
+  std::vector<size_t> part(k);
+  std::iota(part.begin(), part.end(), size_t(0));
+  const auto find = [&](size_t i) {
+    while (part[i] != i) i = part[i] = part[part[i]];
+    return i;
+  };
+  for (size_t i = 0; i < k; ++i)
+    for (size_t j = i + 1; j < k; ++j)
+      if (find(i) != find(j) && SameWay(paths[i].points, paths[j].points)) part[find(j)] = find(i);
+  std::vector<Group> groups;
+  std::vector<size_t> group_of(k, SIZE_MAX);  // by root
+  for (size_t j = 0; j < k; ++j) {
+    size_t& g = group_of[find(j)];
+    if (g == SIZE_MAX) {
+      g = groups.size();
+      groups.push_back({j, double(paths[j].weight)});
+      continue;
+    }
+    groups[g].weight += double(paths[j].weight);
+    if (g > 0 && double(rng.Uniform()) * groups[g].weight < double(paths[j].weight)) groups[g].chosen = j;
+  }
+  for (const Group& g : groups) {
+    const float share = float(g.weight / total);
+    for (ShadingPoint p : paths[g.chosen].points) {
+      p.throughput *= share;
+      points->push_back(p);
+    }
+  }
+}
+
+// K offsets in [0, 1)² that form a group under addition mod 1 (a rank-1 lattice
+// (j/K, j·g/K mod 1), its generator g the one that keeps the points furthest apart on the torus):
+// a sample's coverage positions are its own plus each offset, so the K positions are equally
+// likely to be any one of them shifted (MergeCoverage relies on that) and cover the pixel's
+// sample space evenly.
+std::vector<Vec2> CoverageLattice(int k) {
+  const auto torus = [](double d) { return std::min(d, 1.0 - d); };
+  int best = 1;
+  double best_distance = -1;
+  for (int g = 1; g < k; ++g) {
+    if (std::gcd(g, k) != 1) continue;
+    double nearest = INFINITY;
+    for (int j = 1; j < k; ++j) {
+      const double dx = torus(double(j) / k), dy = torus(double((j * g) % k) / k);
+      nearest = std::min(nearest, dx * dx + dy * dy);
+    }
+    if (nearest > best_distance) best_distance = nearest, best = g;
+  }
+  std::vector<Vec2> lattice(size_t(std::max(k, 1)));
+  for (int j = 0; j < k; ++j) lattice[size_t(j)] = {float(j) / float(k), float((j * best) % k) / float(k)};
+  return lattice;
+}
+
 // Camera-side supersampling of one active pixel: its `paths` more paths continue the
 // pixel's scrambled Sobol sequence after its receiver samples, each with one emitter sample per
 // sharp vertex (the pixel gets `paths` of them; the receiver samples keep sharp_samples).
 // Film::Resolve divides Σ w (E + G) by Σ w over the receiver samples, so giving each of them the
 // filter-weighted mean Ē over all the pixel's paths resolves to Ē + Σ w G / Σ w: two unbiased
 // estimates of two disjoint sets of paths (a path ends where a receiver would start).
+// A receiver sample of `coverage` paths holds their mean emission at weight Σw/K: it counts
+// as K of them here.
 void AddCameraPaths(const Scene& scene, const FilterSampler& filter, const CameraPathOptions& path_options,
-                    int paths, int x, int y, uint32_t scramble0, uint32_t scramble1, Rng& rng,
+                    int paths, int coverage, int x, int y, uint32_t scramble0, uint32_t scramble1, Rng& rng,
                     std::span<CameraSample> samples, ReceiverStats* st) {
   double sum_w = 0, receiver_w = 0, sum[3] = {0, 0, 0};
   auto add = [&](float w, RGB e) {
@@ -666,7 +779,7 @@ void AddCameraPaths(const Scene& scene, const FilterSampler& filter, const Camer
     sum[0] += wd * double(e.r), sum[1] += wd * double(e.g), sum[2] += wd * double(e.b);
   };
   for (const CameraSample& cs : samples) {
-    add(cs.weight, cs.emitted);
+    add(cs.weight * float(coverage), cs.emitted);
     receiver_w += double(cs.weight);
   }
   for (int k = 0; k < paths; ++k) {
@@ -765,6 +878,11 @@ ReceiverSet GenerateReceivers(const Scene& scene, const FilterSampler& filter,
   receiver_paths.media_samples = opt.media_direct_samples;
   receiver_paths.segments_per_ray = opt.segments_per_ray;
   receiver_paths.splits = opt.splits;
+  // Coverage paths share the sample's emitter samples at sharp vertices.
+  const int coverage = opt.coverage > 1 && opt.segments_per_ray < 0 && filter.positive() ? opt.coverage : 1;
+  const std::vector<Vec2> lattice = CoverageLattice(coverage);
+  CameraPathOptions coverage_paths = receiver_paths;
+  coverage_paths.sharp_samples = std::max(1, opt.sharp_samples / coverage);
   CameraPathOptions camera_only = receiver_paths;
   camera_only.sharp_samples = 1;
   camera_only.segments_per_ray = -1;
@@ -783,6 +901,35 @@ ReceiverSet GenerateReceivers(const Scene& scene, const FilterSampler& filter,
       uint32_t scramble0 = rng.Next(), scramble1 = rng.Next();
       for (int s = 0; s < spp; ++s) {
         size_t index = size_t(pixel) * spp + s;
+        if (coverage > 1) {
+          CameraSample& cs = set.samples[index];
+          cs.pixel = pixel;
+          std::vector<CoveragePath> ways(static_cast<size_t>(coverage));
+          const Vec2 u0{Sobol2DComponent(uint32_t(s), 0, scramble0), Sobol2DComponent(uint32_t(s), 1, scramble1)};
+          for (int j = 0; j < coverage; ++j) {
+            const auto wrap = [](float v) { return std::min(v >= 1.f ? v - 1.f : v, 0x1.fffffep-1f); };
+            const Vec2 o = lattice[size_t(j)];
+            const FilterSample fs = filter.Sample({wrap(u0.x + o.x), wrap(u0.y + o.y)});
+            const Ray ray = FilmRay(scene, x, y, fs, rng);
+            ways[size_t(j)].weight = fs.weight;
+            ++st.camera_rays;
+            if (j > 0) ++st.coverage_paths;
+            if (!IsFinite(ray.o) || !IsFinite(ray.d)) {
+              ++st.nonfinite_rays;
+              continue;
+            }
+            PathEnd end = TraceCameraPath(scene, coverage_paths, ray, rng);
+            ways[size_t(j)].emitted = end.emitted;
+            ways[size_t(j)].points = std::move(end.points);
+            st.specular_bounces += end.specular_bounces;
+            st.escaped += end.escaped;
+            st.transmittance_evals += end.transmittance_evals;
+            st.split_vertices += size_t(end.split_vertices);
+          }
+          MergeCoverage(ways, rng, &cs, &points[index]);
+          for (ShadingPoint& point : points[index]) point.sample = uint32_t(index);
+          continue;
+        }
         // Film position: scrambled Sobol point warped by the filter (importance sampling).
         Vec2 u{Sobol2DComponent(uint32_t(s), 0, scramble0), Sobol2DComponent(uint32_t(s), 1, scramble1)};
         FilterSample fs = filter.Sample(u);
@@ -810,7 +957,8 @@ ReceiverSet GenerateReceivers(const Scene& scene, const FilterSampler& filter,
       if (const int paths = camera_side ? camera_side->paths(x, y, opt.camera_paths) : 0; paths > 0) {
         ++st.camera_active_pixels;
         const std::span<CameraSample> pixel_samples(set.samples.data() + size_t(pixel) * spp, size_t(spp));
-        AddCameraPaths(scene, filter, camera_only, paths, x, y, scramble0, scramble1, rng, pixel_samples, &st);
+        AddCameraPaths(scene, filter, camera_only, paths, coverage, x, y, scramble0, scramble1, rng, pixel_samples,
+                       &st);
       }
     }
   });
@@ -839,6 +987,7 @@ ReceiverSet GenerateReceivers(const Scene& scene, const FilterSampler& filter,
     set.stats.camera_active_pixels += st.camera_active_pixels;
     set.stats.media_direct_samples += st.media_direct_samples;
     set.stats.split_vertices += st.split_vertices;
+    set.stats.coverage_paths += st.coverage_paths;
   }
   return set;
 }

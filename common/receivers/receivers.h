@@ -60,6 +60,7 @@ struct ReceiverStats {
   size_t camera_active_pixels = 0; // pixels that got camera_paths more paths
   size_t media_direct_samples = 0; // samples of the emitters' single scattering (media_direct_samples)
   size_t split_vertices = 0;       // receiver-path vertices that split (ReceiverOptions::splits)
+  size_t coverage_paths = 0;       // camera paths traced for receiver samples beyond one per sample
 };
 
 struct ReceiverSet {
@@ -107,9 +108,23 @@ struct ReceiverOptions {
   // (a sample that follows a coat has no receiver on the base; one reflected by glass sees only
   // the reflection).
   int splits = 0;
+  // Coverage paths per receiver sample (docs/rendering.md, "Coverage"): the sample traces this
+  // many camera paths, each with its own film position, and groups them by the surfaces they end
+  // on (material, depth, normal within ~18°, no step off the plane); each group keeps the
+  // shading points of one of its paths, chosen in proportion to the filter weights, weighted by
+  // the group's share of the sample's weight, and the sample's emission is the mean over all.
+  // So a pixel on an edge is shaded where each of its surfaces covers it, and inside a surface
+  // it still has one receiver: unbiased (the choice stands in for its group's paths in
+  // expectation). 1: one path per sample. Only for filters without negative lobes and without
+  // eye segments (media rows keep one path per sample).
+  int coverage = 1;
 };
 // The most a camera path splits (--param splits).
 inline constexpr int kMaxSplits = 16;
+// The most coverage paths a receiver sample traces (--param coverage).
+inline constexpr int kMaxCoverage = 64;
+// Its default.
+inline constexpr int kDefaultCoverage = 16;
 // The default of --param camera_paths for a scene whose camera paths can collect light by
 // themselves (render_job.cpp, CameraPathsFor).
 inline constexpr int kDefaultCameraPaths = 256;

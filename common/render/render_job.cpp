@@ -167,6 +167,8 @@ Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, Ph
   // Camera-side paths per pixel (receivers.h, ReceiverOptions::camera_paths); -1: the default
   // the scene calls for (CameraPathsFor).
   const int camera_paths = params.Has("camera_paths") ? int(params.GetInt("camera_paths", 0, 0, 4096)) : -1;
+  // Coverage paths per receiver sample (receivers.h, ReceiverOptions::coverage).
+  const int coverage = int(params.GetInt("coverage", kDefaultCoverage, 1, kMaxCoverage));
   // Lights particle paths leave in media: VRLs (Novák 2012; default) or medium VPLs.
   const std::string media_lights_name = params.GetString("media_lights", "vrl");
   if (media_lights_name != "vrl" && media_lights_name != "vpl")
@@ -238,6 +240,7 @@ Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, Ph
   ropt.media_direct_samples = media_rows ? plan.matrix_options.media_direct_samples : 0;
   ropt.sharp_samples = plan.matrix_options.sharp_samples;
   ropt.splits = plan.matrix_options.splits;
+  ropt.coverage = coverage;
   ropt.camera_paths = camera_paths >= 0 ? camera_paths : CameraPathsFor(scene, plan.effects, ropt.media_direct_samples > 0);
   *plan.receivers = GenerateReceivers(scene, filter_sampler, ropt);
   timer.End("receivers");
@@ -443,6 +446,7 @@ nlohmann::json MakeStats(const Plan& plan, const RenderSettings& settings,
                     {"media_direct_samples", plan.receivers->stats.media_direct_samples},
                     {"specular_bounces", plan.receivers->stats.specular_bounces},
                     {"split_vertices", plan.receivers->stats.split_vertices},
+                    {"coverage_paths", plan.receivers->stats.coverage_paths},
                     {"points_per_sample", plan.receivers->samples.empty() ? 0.0
                                           : double(plan.receivers->points.size()) / double(plan.receivers->samples.size())},
                     {"escaped", plan.receivers->stats.escaped},

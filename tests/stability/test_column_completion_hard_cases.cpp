@@ -217,11 +217,11 @@ std::string Bays() {
 }
 
 RenderOutput Render(const std::string& scene, const std::string& method,
-                    std::vector<std::string> params) {
+                    std::vector<std::string> params, uint64_t seed = 4) {
   RenderSettings s;
   s.method = method;
   s.lights = 800;
-  s.seed = 4;
+  s.seed = seed;
   s.params = std::move(params);
   return RenderScene(scene, s);
 }
@@ -257,13 +257,25 @@ TEST(AdaptiveCompletionHardCases, ZeroSlicesAndTwelveOrdersOfMagnitude) {
   EXPECT_EQ(dark_sum(exact.image), 0.0);
 
   // Defaults and a sparse Ω: finite, nonnegative, bounded; the bright bay's energy kept, little
-  // leaked into the black bay.
+  // leaked into the black bay. A sparse Ω (2% of the rows) estimates a slice from a handful of
+  // rows, so one light set can lose a third of the bay (seed 6 with one path per sample) or keep
+  // all of it: its energy is checked on the mean of four seeds' renders (the brute-force bay is the
+  // same light set's, but the sparse estimate's spread is far larger than the light sets').
   for (const std::vector<std::string>& params :
        {std::vector<std::string>{}, std::vector<std::string>{"rho=0.02", "omega_per_basis=0"}}) {
     const RenderOutput approx = Render(scene, "adaptive-completion", params);
     testing::ExpectFiniteBounded(approx.image, 1e7f);
     EXPECT_EQ(approx.stats["film"]["nan_samples"], 0);
-    const double kept = bright_sum(approx.image) / bright;
+    double kept = bright_sum(approx.image) / bright;
+    if (!params.empty()) {
+      for (uint64_t seed : {5, 6, 7}) {
+        const RenderOutput other = Render(scene, "adaptive-completion", params, seed);
+        testing::ExpectFiniteBounded(other.image, 1e7f);
+        kept += bright_sum(other.image) / BaySum(Render(scene, "brute", {}, seed).image, flipped ? 34 : 0,
+                                                   flipped ? 48 : 14);
+      }
+      kept /= 4;
+    }
     const double leaked = dark_sum(approx.image) / bright;
     const double dim = BaySum(approx.image, 18, 30) / middle;
     std::printf("adaptive-completion %s: bright %.4f dim %.4f dark/bright %.3g\n",

@@ -169,11 +169,14 @@ TEST(ClampCompensation, WhatItAddsIsTheFurnacesExpectedLossInClosedForm) {
     const Plan plan = BuildPlan(path, s, &times);
     const GatherOutcome outcome = RunStagesLocally(plan, nullptr, &times);
     const double c = plan.matrix->clamp_distance();
-    double lost = 0;
-    for (const ShadingPoint& sp : plan.receivers->points)
-      lost += (1 + rho) * rho / kPiD * FurnaceClampIntegral(sp.p, c);
-    // Each camera hit's unclamped light is (1 + ρ) ρ (the cube covers its hemisphere).
-    const double unclamped = (1 + rho) * rho * double(plan.receivers->points.size());
+    // Each camera hit's unclamped light is (1 + ρ) ρ (the cube covers its hemisphere), times its
+    // throughput (its share of the pixel where coverage paths group at the cube's edges).
+    double lost = 0, unclamped = 0;
+    for (const ShadingPoint& sp : plan.receivers->points) {
+      const double share = double(sp.throughput.g);
+      lost += share * (1 + rho) * rho / kPiD * FurnaceClampIntegral(sp.p, c);
+      unclamped += share * (1 + rho) * rho;
+    }
     const double compensated = outcome.counters.clamp_compensated / unclamped;
     const double exact = lost / unclamped;
     RecordProperty("clamp_" + std::to_string(clamp) + "_expected_loss", std::to_string(exact));

@@ -248,7 +248,9 @@ TEST(CameraSideSupersampling, ALightsEdgePixelsConvergeToTheirCoverage) {
   s.method = "brute";
   s.lights = 50;
   s.seed = 3;
-  s.params = {"camera_paths=2048"};
+  // One path per receiver sample: coverage paths (docs/rendering.md, "Coverage") would average the
+  // edges' emission by themselves.
+  s.params = {"camera_paths=2048", "coverage=1"};
   RenderOutput on = RenderScene(path, s);
   const CoverageError e_on = RhombusError(on.image, res);
   // 2049 stratified samples of a pixel cut by a straight edge: far below 1% of L.
@@ -263,7 +265,7 @@ TEST(CameraSideSupersampling, ALightsEdgePixelsConvergeToTheirCoverage) {
   EXPECT_EQ(on.stats["receivers"]["camera_pilot_paths"], size_t(res * res * kCameraPilotPaths));
 
   // Off, the edge pixels are 0 or L: the option is what brought them to their coverage.
-  s.params = {"camera_paths=0"};
+  s.params = {"camera_paths=0", "coverage=1"};
   RenderOutput off = RenderScene(path, s);
   const CoverageError e_off = RhombusError(off.image, res);
   EXPECT_GT(e_off.max_abs, 0.3);
@@ -393,7 +395,7 @@ TEST(CameraSideSupersampling, NothingToSeeNoCameraPaths) {
   RenderOutput def = RenderScene(path, s);
   EXPECT_EQ(def.stats["receivers"]["camera_paths"], 0);
   EXPECT_EQ(def.stats["receivers"]["camera_pilot_paths"], 0);
-  s.params = {"camera_paths=0"};
+  s.params = {"camera_paths=0", "coverage=1"};
   RenderOutput off = RenderScene(path, s);
   ASSERT_TRUE(def.image.SameSize(off.image));
   for (size_t i = 0; i < def.image.pixels.size(); ++i) ASSERT_EQ(def.image.pixels[i], off.image.pixels[i]);
