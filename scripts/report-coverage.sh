@@ -2,9 +2,10 @@
 # Generates docs/coverage.md: the default render with --param coverage=K for K = 1, 4, 16, 64
 # (docs/rendering.md, "Coverage") on veach-mis at 160x200 and scenes/product-shot: time, receivers
 # per pixel, error against the truth over all pixels and split into edge pixels (the truth's 3x3
-# neighbourhood spans more than 4x) and the rest, and the share of specks; then `path` given the
-# default's time. The truths are the ones scripts/report-default.sh renders
-# (build/default-runs/NAME[-RES]/truth.exr), made here the same way when missing. Every number
+# neighbourhood spans more than 4x) and the rest, and the share of specks. The default against
+# `path` at equal time is scripts/report-default.sh's (docs/product-shots-vs-path.md). The truths
+# are the ones scripts/report-default.sh renders (build/default-runs/NAME[-RES]/truth.exr), made
+# here the same way when missing. Every number
 # comes from a command this script runs; never edit the output.
 #
 # Usage: scripts/report-coverage.sh
@@ -35,12 +36,6 @@ for c in "${cases[@]}"; do
     "$lf" render "$scene" --quiet "${size[@]}" --param "coverage=$k" --out "$work/$name-$k.exr" --stats "$work/$name-$k.json"
     rows+=("$name|${res:-Film}|$k|$work/$name-$k.json|$work/$name-$k.exr|$runs/truth.exr|$runs/truth.json")
   done
-  # path at the time of coverage=16, the default (its cost per sample from 4 spp).
-  "$lf" render "$scene" --quiet "${size[@]}" --method path --seed 3 --spp 4 --out "$work/$name-p4.exr" --stats "$work/$name-p4.json"
-  spp=$($py -c "import json,sys; a=json.load(open(sys.argv[1])); b=json.load(open(sys.argv[2])); print(max(1, round(4 * a['time']['total_s'] / b['time']['total_s'])))" \
-    "$work/$name-16.json" "$work/$name-p4.json")
-  "$lf" render "$scene" --quiet "${size[@]}" --method path --seed 3 --spp "$spp" --out "$work/$name-path.exr" --stats "$work/$name-path.json"
-  rows+=("$name|${res:-Film}|path $spp spp|$work/$name-path.json|$work/$name-path.exr|$runs/truth.exr|$runs/truth.json")
 done
 $py - "$root/docs/coverage.md" "$(git -C "$root" rev-parse --short HEAD)$(git -C "$root" diff --quiet || echo +uncommitted)" "$(nproc)" "${rows[@]}" <<'PY'
 import sys, json, datetime, subprocess
@@ -56,7 +51,7 @@ md = ["# Coverage paths: what antialiasing costs", "",
       f"on {cores} cores. Never edit the numbers: re-run the script.", "",
       "The default render (`lightfarm render scene.pbrt --param coverage=K`, everything else default) for K camera paths "
       "per receiver sample, grouped by the surface they end on (docs/rendering.md, \"Coverage\"; K = 1 is one path per "
-      "sample), and `path` given the time of K = 16, the default. `receivers/px`: shading points per pixel. Errors "
+      "sample; the default is 16). The default against `path` at equal time: docs/product-shots-vs-path.md. `receivers/px`: shading points per pixel. Errors "
       "against the truth: rel_l1 over all pixels, then its part on *edge* pixels (the truth's 3x3 neighbourhood spans "
       "more than 4x: geometric edges and the rims of highlights) and on the rest, both as shares of the whole image's "
       "‖truth‖₁, so they add up to rel_l1. `specks`: lit truth pixels below 0.3x the smallest or above 3x the largest "
@@ -73,8 +68,7 @@ for row in sys.argv[4:]:
     err = np.abs(img - t).sum(2); norm = np.abs(t).sum()
     l2 = float(np.sqrt(((img - t) ** 2).sum() / (t ** 2).sum()))
     px = t.shape[0] * t.shape[1]
-    pts = d.get('receivers', {}).get('points')
-    rp = f"{pts / px:.3f}" if pts is not None else "–"
+    rp = f"{d['receivers']['points'] / px:.3f}"
     truths[name] = truth_json
     md.append(f"| {name} | {res} | {k} | {d['time']['total_s']:.1f} s | {rp} | {err.sum() / norm:.4f} | "
               f"{err[edge].sum() / norm:.4f} | {err[~edge].sum() / norm:.4f} | {l2:.4f} | SPECKS:{image}:{truth} |")

@@ -12,8 +12,8 @@ namespace lightfarm {
 
 // Workers and coordinator must speak the same worker protocol and task encodings
 // (serialize.h's kSerializeVersion moves with it). 2: film methods (path); 3: caustic counters;
-// 4: camera-side paths.
-inline constexpr uint32_t kWorkerProtocolVersion = 4;
+// 4: camera-side paths; 5: coverage paths (receiver stats).
+inline constexpr uint32_t kWorkerProtocolVersion = 5;
 
 // Streamed data (blob uploads, scene downloads, task results) travels in chunks of this size, far
 // below the servers' message limit, so a message never nears it whatever the file.

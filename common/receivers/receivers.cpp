@@ -664,21 +664,14 @@ bool SameSurface(const ShadingPoint& a, const ShadingPoint& b) {
   return std::abs(Dot(d, a.ng)) <= step && std::abs(Dot(d, b.ng)) <= step;
 }
 
-bool SameWay(const std::vector<ShadingPoint>& a, const std::vector<ShadingPoint>& b) {
-  if (a.size() != b.size()) return false;
-  for (size_t i = 0; i < a.size(); ++i)
-    if (!SameSurface(a[i], b[i])) return false;
-  return true;
-}
-
 // One receiver sample from its K coverage paths (ReceiverOptions::coverage), of equal positive
 // filter weights w_j (FilterSampler: |w| is the same for every sample). Path 0 is the sample's
 // own film position, the others the pixel-sized lattice shifted by it (CoverageLattice), so given
 // the set of K positions each is path 0 with probability 1/K. With W = Σ w_j the sample gets
 // weight W/K and emission Σ w_j E_j / W: Film's Σ w (E + G) / Σ w sees (1/K) Σ w_j E_j, as K
-// samples would give. The paths are grouped (SameWay); group g, of weight W_g, keeps the points
-// of one path r, their throughput scaled by W_g / W: path 0 in its own group, elsewhere one
-// chosen with probability w_r / W_g (weighted reservoir). Given the set, path 0's group is g with
+// samples would give. The paths' shading points are grouped (SameSurface, slot by slot below);
+// group g, of weight W_g, keeps the point of one path r, its throughput scaled by W_g / W: path
+// 0's in its own group, elsewhere one chosen with probability w_r / W_g (weighted reservoir). Given the set, path 0's group is g with
 // probability W_g / W, so E[share of g · G_r] = Σ_g (W_g/W)² Ḡ_g + (1 − W_g/W)(W_g/W) Ḡ_g
 // = (1/K) Σ_j w_j G_j (Ḡ_g the group's mean): unbiased, one receiver per group, and where the
 // pixel is one surface the receiver is the sample's own, as without coverage (so spp samples keep
@@ -700,38 +693,49 @@ void MergeCoverage(std::vector<CoveragePath>& paths, Rng& rng, CameraSample* cs,
   cs->weight = float(total / double(paths.size()));
   if (!(total > 0)) return;
   cs->emitted = RGB(float(e[0] / total), float(e[1] / total), float(e[2] / total));
-  struct Group {
-    size_t chosen;
-    double weight;
-  };
-  // The groups are the connected parts of SameWay over all pairs: a function of the set of
-  // paths, not of which one is path 0 (the argument above needs that).
+  // Slot by slot (the i-th point of every path that has one: a split path has the base of each
+  // vertex it split at, then its end), so a coat's reflection does not part the base's group.
+  // The groups are the connected parts of SameSurface over all pairs of the slot's points: a
+  // function of the set of paths, not of which one is path 0 (the argument above needs that).
+  // Paths without the slot's point form the slot's empty group, which adds nothing.
+  size_t slots = 0;
+  for (const CoveragePath& c : paths) slots = std::max(slots, c.points.size());
   const size_t k = paths.size();
-  std::vector<size_t> part(k);
-  std::iota(part.begin(), part.end(), size_t(0));
+  std::vector<size_t> part(k), group_of(k);
   const auto find = [&](size_t i) {
     while (part[i] != i) i = part[i] = part[part[i]];
     return i;
   };
-  for (size_t i = 0; i < k; ++i)
-    for (size_t j = i + 1; j < k; ++j)
-      if (find(i) != find(j) && SameWay(paths[i].points, paths[j].points)) part[find(j)] = find(i);
+  struct Group {
+    size_t chosen;
+    double weight;
+  };
   std::vector<Group> groups;
-  std::vector<size_t> group_of(k, SIZE_MAX);  // by root
-  for (size_t j = 0; j < k; ++j) {
-    size_t& g = group_of[find(j)];
-    if (g == SIZE_MAX) {
-      g = groups.size();
-      groups.push_back({j, double(paths[j].weight)});
-      continue;
+  for (size_t slot = 0; slot < slots; ++slot) {
+    const auto has = [&](size_t j) { return slot < paths[j].points.size(); };
+    std::iota(part.begin(), part.end(), size_t(0));
+    for (size_t i = 0; i < k; ++i)
+      for (size_t j = i + 1; j < k && has(i); ++j)
+        if (has(j) && find(i) != find(j) && SameSurface(paths[i].points[slot], paths[j].points[slot]))
+          part[find(j)] = find(i);
+    groups.clear();
+    std::fill(group_of.begin(), group_of.end(), SIZE_MAX);  // by root
+    for (size_t j = 0; j < k; ++j) {
+      if (!has(j)) continue;
+      size_t& g = group_of[find(j)];
+      if (g == SIZE_MAX) {
+        g = groups.size();
+        groups.push_back({j, double(paths[j].weight)});
+        continue;
+      }
+      groups[g].weight += double(paths[j].weight);
+      // Path 0 keeps its own group; elsewhere a weighted reservoir.
+      if (groups[g].chosen != 0 && double(rng.Uniform()) * groups[g].weight < double(paths[j].weight))
+        groups[g].chosen = j;
     }
-    groups[g].weight += double(paths[j].weight);
-    if (g > 0 && double(rng.Uniform()) * groups[g].weight < double(paths[j].weight)) groups[g].chosen = j;
-  }
-  for (const Group& g : groups) {
-    const float share = float(g.weight / total);
-    for (ShadingPoint p : paths[g.chosen].points) {
-      p.throughput *= share;
+    for (const Group& g : groups) {
+      ShadingPoint p = paths[g.chosen].points[slot];
+      p.throughput *= float(g.weight / total);
       points->push_back(p);
     }
   }

@@ -218,7 +218,8 @@ Bytes SerializeReceiverSet(const ReceiverSet& set) {
   w.U32(uint32_t(set.spp));
   for (size_t v : {set.stats.camera_rays, set.stats.specular_bounces, set.stats.escaped,
                    set.stats.nonfinite_rays, set.stats.camera_paths, set.stats.camera_pilot_paths,
-                   set.stats.camera_active_pixels, set.stats.media_direct_samples, set.stats.split_vertices})
+                   set.stats.camera_active_pixels, set.stats.media_direct_samples, set.stats.split_vertices,
+                   set.stats.coverage_paths})
     w.U64(v);
   w.U64(set.samples.size());
   for (const CameraSample& c : set.samples) {
@@ -265,7 +266,8 @@ ReceiverSet DeserializeReceiverSet(ByteView bytes) {
   set.spp = int(spp);
   for (size_t* v : {&set.stats.camera_rays, &set.stats.specular_bounces, &set.stats.escaped,
                     &set.stats.nonfinite_rays, &set.stats.camera_paths, &set.stats.camera_pilot_paths,
-                    &set.stats.camera_active_pixels, &set.stats.media_direct_samples, &set.stats.split_vertices})
+                    &set.stats.camera_active_pixels, &set.stats.media_direct_samples, &set.stats.split_vertices,
+                    &set.stats.coverage_paths})
     *v = size_t(r.U64());
   const uint64_t pixels = uint64_t(width) * height;
   set.samples.resize(r.Count(kSampleBytes));

@@ -32,8 +32,9 @@ using ByteView = std::span<const uint8_t>;
 // 2: media on shading points, medium VPLs; 3: VRLs (light length, VRL count); 4: film methods
 // (task sample range, row weights); 5: caustic counters; 6: camera-side paths (receiver stats); 7: element-bound counters;
 // 8: VRL flights and camera-side single-scattering samples (light set and receiver stats);
-// 9: several shading points per camera sample (split mixed vertices)
-inline constexpr uint16_t kSerializeVersion = 9;
+// 9: several shading points per camera sample (split mixed vertices); 10: coverage paths
+// (receiver stats)
+inline constexpr uint16_t kSerializeVersion = 10;
 
 Bytes SerializeLightSet(const LightSet& lights);
 LightSet DeserializeLightSet(ByteView bytes);

@@ -48,6 +48,7 @@ ReceiverSet SampleReceivers() {
   r.spp = 2;
   r.stats.camera_rays = 4;
   r.stats.escaped = 1;
+  r.stats.coverage_paths = 45;
   for (uint32_t s = 0; s < 4; ++s) {
     CameraSample cs;
     cs.pixel = s / 2;
@@ -107,6 +108,7 @@ TEST(Serialize, ReceiverSetRoundTrip) {
   EXPECT_EQ(out.height, 1);
   EXPECT_EQ(out.spp, 2);
   EXPECT_EQ(out.stats.escaped, 1u);
+  EXPECT_EQ(out.stats.coverage_paths, 45u);
   ASSERT_EQ(out.samples.size(), 4u);
   ASSERT_EQ(out.points.size(), 3u);
   EXPECT_EQ(out.samples[3].first_point, -1);
