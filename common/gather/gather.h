@@ -67,6 +67,11 @@ class GatherMethod {
   // matrix: its plan has no receivers or virtual lights, its tasks are pixel tiles × sample
   // ranges (SubMatrixTask), and a pixel may appear in several tasks, summed in task order.
   virtual bool renders_film() const { return false; }
+  // Whether its rows may be receivers of coverage paths (ReceiverOptions::coverage): a few points
+  // per pixel whose throughput is their share of it, some of them small. A method whose estimate
+  // leans on a handful of uniformly drawn rows per slice says no: the default is then one path
+  // per sample.
+  virtual bool takes_coverage_rows() const { return true; }
   virtual std::string stage_name(int stage) const { return stage == 0 ? "gather" : "stage" + std::to_string(stage); }
 
   // The tasks of a stage. `tiles` are the plan's row partitions (slices), covering every row once;

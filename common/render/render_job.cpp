@@ -167,8 +167,6 @@ Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, Ph
   // Camera-side paths per pixel (receivers.h, ReceiverOptions::camera_paths); -1: the default
   // the scene calls for (CameraPathsFor).
   const int camera_paths = params.Has("camera_paths") ? int(params.GetInt("camera_paths", 0, 0, 4096)) : -1;
-  // Coverage paths per receiver sample (receivers.h, ReceiverOptions::coverage).
-  const int coverage = int(params.GetInt("coverage", kDefaultCoverage, 1, kMaxCoverage));
   // Lights particle paths leave in media: VRLs (Novák 2012; default) or medium VPLs.
   const std::string media_lights_name = params.GetString("media_lights", "vrl");
   if (media_lights_name != "vrl" && media_lights_name != "vpl")
@@ -178,10 +176,17 @@ Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, Ph
   // `auto` resolves once the scene's effects are known (below); until then only its own
   // parameter can be checked, and a typo in the others is reported after the scene is built.
   const bool auto_method = settings.method == kAutoMethod;
-  // Film methods' tiling (FilmTasks): read only for them, so a matrix method rejects the keys.
-  int film_tile = 0, film_pass_spp = 0;
-  auto read_film_params = [&] {
-    if (!plan.method->renders_film()) return;
+  // Film methods' tiling (FilmTasks): read only for them, so a matrix method rejects the keys (and
+  // the film methods reject coverage).
+  // Matrix methods' coverage paths per receiver sample (receivers.h, ReceiverOptions::coverage),
+  // one for a method whose rows should not be coverage points (GatherMethod::takes_coverage_rows).
+  int film_tile = 0, film_pass_spp = 0, coverage = 1;
+  auto read_method_params = [&] {
+    if (!plan.method->renders_film()) {
+      coverage = int(params.GetInt("coverage", plan.method->takes_coverage_rows() ? kDefaultCoverage : 1, 1,
+                                   kMaxCoverage));
+      return;
+    }
     film_tile = int(params.GetInt("tile", 32, 1, 4096));
     film_pass_spp = int(params.GetInt("pass_spp", 64, 1, 1 << 20));
   };
@@ -189,7 +194,7 @@ Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, Ph
     CheckGatherMethodOptions(settings.method, params);
   } else {
     ChooseMethod(settings, &params, &plan);
-    read_film_params();
+    read_method_params();
     params.RejectUnused();
   }
   if (settings.spp < 0) throw OptionError("--spp must be >= 1 (or 0 for the method's default)");
@@ -202,7 +207,7 @@ Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, Ph
   plan.effects = ComputeEffects(scene);
   if (auto_method) {
     ChooseMethod(settings, &params, &plan);
-    read_film_params();
+    read_method_params();
     params.RejectUnused();
   }
   if (plan.method->renders_film()) {
