@@ -38,8 +38,11 @@ RenderSettings Settings(const std::string& method, std::vector<std::string> para
   return s;
 }
 
+// One path per receiver sample for every method, so brute force has lightslice's receivers
+// (lightslice takes no coverage rows: GatherMethod::takes_coverage_rows).
 RenderOutput Render(const std::string& scene, const std::string& method,
                     std::vector<std::string> params, size_t lights, int res) {
+  if (method != "lightslice") params.push_back("coverage=1");
   return RenderScene(scene, Settings(method, std::move(params), lights, res));
 }
 
