@@ -665,17 +665,17 @@ bool SameSurface(const ShadingPoint& a, const ShadingPoint& b) {
 }
 
 // One receiver sample from its K coverage paths (ReceiverOptions::coverage), of equal positive
-// filter weights w_j (FilterSampler: |w| is the same for every sample). Path 0 is the sample's
-// own film position, the others the pixel-sized lattice shifted by it (CoverageLattice), so given
-// the set of K positions each is path 0 with probability 1/K. With W = Σ w_j the sample gets
-// weight W/K and emission Σ w_j E_j / W: Film's Σ w (E + G) / Σ w sees (1/K) Σ w_j E_j, as K
-// samples would give. The paths' shading points are grouped (SameSurface, slot by slot below);
-// group g, of weight W_g, keeps the point of one path r, its throughput scaled by W_g / W: path
-// 0's in its own group, elsewhere one chosen with probability w_r / W_g (weighted reservoir). Given the set, path 0's group is g with
-// probability W_g / W, so E[share of g · G_r] = Σ_g (W_g/W)² Ḡ_g + (1 − W_g/W)(W_g/W) Ḡ_g
-// = (1/K) Σ_j w_j G_j (Ḡ_g the group's mean): unbiased, one receiver per group, and where the
-// pixel is one surface the receiver is the sample's own, as without coverage (so spp samples keep
-// their stratification).
+// filter weights w_j (FilterSampler: |w| is the same for every sample). Path 0 is the sample's own
+// film position, the others the pixel-sized lattice shifted by it (CoverageLattice), so given the
+// set of K positions each is path 0 with probability 1/K. With W = Σ w_j the sample gets weight
+// W/K and emission Σ w_j E_j / W: Film's Σ w (E + G) / Σ w sees (1/K) Σ w_j E_j, as K samples
+// would give. The paths' shading points are grouped (SameSurface, slot by slot below); group g, of
+// weight W_g, keeps the point of one path r, its throughput scaled by W_g / W: path 0's in its own
+// group, elsewhere one chosen with probability w_r / W_g (weighted reservoir). Given the set, path
+// 0's group is g with probability W_g / W, so E[share of g · G_r] = Σ_g (W_g/W)² Ḡ_g + (1 −
+// W_g/W)(W_g/W) Ḡ_g = (1/K) Σ_j w_j G_j (Ḡ_g the group's mean): unbiased, one receiver per group,
+// and where the pixel is one surface the receiver is the sample's own, as without coverage (so spp
+// samples keep their stratification).
 struct CoveragePath {
   float weight = 0;
   RGB emitted;
@@ -898,6 +898,13 @@ ReceiverSet GenerateReceivers(const Scene& scene, const FilterSampler& filter,
 
   tbb::parallel_for(0, set.height, [&](int y) {
     ReceiverStats& st = row_stats[y];
+    const auto tally = [&st](const PathEnd& end) {
+      st.specular_bounces += end.specular_bounces;
+      st.escaped += end.escaped;
+      st.transmittance_evals += end.transmittance_evals;
+      st.media_direct_samples += end.media_direct_samples;
+      st.split_vertices += size_t(end.split_vertices);
+    };
     for (int x = 0; x < set.width; ++x) {
       uint32_t pixel = uint32_t(y * set.width + x);
       uint64_t pixel_seed = HashSeed({opt.seed, uint64_t(RngStream::kCameraSample), pixel});
@@ -910,8 +917,8 @@ ReceiverSet GenerateReceivers(const Scene& scene, const FilterSampler& filter,
           cs.pixel = pixel;
           std::vector<CoveragePath> ways(static_cast<size_t>(coverage));
           const Vec2 u0{Sobol2DComponent(uint32_t(s), 0, scramble0), Sobol2DComponent(uint32_t(s), 1, scramble1)};
+          const auto wrap = [](float v) { return std::min(v >= 1.f ? v - 1.f : v, 0x1.fffffep-1f); };
           for (int j = 0; j < coverage; ++j) {
-            const auto wrap = [](float v) { return std::min(v >= 1.f ? v - 1.f : v, 0x1.fffffep-1f); };
             const Vec2 o = lattice[size_t(j)];
             const FilterSample fs = filter.Sample({wrap(u0.x + o.x), wrap(u0.y + o.y)});
             const Ray ray = FilmRay(scene, x, y, fs, rng);
@@ -925,10 +932,7 @@ ReceiverSet GenerateReceivers(const Scene& scene, const FilterSampler& filter,
             PathEnd end = TraceCameraPath(scene, coverage_paths, ray, rng);
             ways[size_t(j)].emitted = end.emitted;
             ways[size_t(j)].points = std::move(end.points);
-            st.specular_bounces += end.specular_bounces;
-            st.escaped += end.escaped;
-            st.transmittance_evals += end.transmittance_evals;
-            st.split_vertices += size_t(end.split_vertices);
+            tally(end);
           }
           MergeCoverage(ways, rng, &cs, &points[index]);
           for (ShadingPoint& point : points[index]) point.sample = uint32_t(index);
@@ -950,11 +954,7 @@ ReceiverSet GenerateReceivers(const Scene& scene, const FilterSampler& filter,
         for (EyeSegment& seg : end.segments) seg.sample = uint32_t(index);
         segments[index] = std::move(end.segments);
         cs.emitted = end.emitted;
-        st.specular_bounces += end.specular_bounces;
-        st.escaped += end.escaped;
-        st.transmittance_evals += end.transmittance_evals;
-        st.media_direct_samples += end.media_direct_samples;
-        st.split_vertices += size_t(end.split_vertices);
+        tally(end);
         for (ShadingPoint& point : end.points) point.sample = uint32_t(index);
         points[index] = std::move(end.points);
       }
