@@ -1,11 +1,16 @@
-// `lightfarm methods`: every gather method of this build with its parameters' defaults (as the
-// method reads them), its bench sweep, and what `auto` chooses by: the bench measurements
-// compiled in (MethodChooser::BuiltIn, docs/surface-methods and docs/media-methods).
+// `lightfarm methods`: the renderer-wide parameters' defaults (render_options.h), then every
+// gather method of this build with its own parameters' defaults (as the method reads them), its
+// bench sweep, and what `auto` chooses by: the bench measurements compiled in
+// (MethodChooser::BuiltIn, docs/surface-methods and docs/media-methods).
 #include <cstdio>
+#include <map>
+#include <memory>
+#include <string>
 
 #include "cli/commands.h"
 #include "common/gather/gather.h"
 #include "common/render/method_chooser.h"
+#include "common/render/render_options.h"
 
 namespace lightfarm::cli {
 
@@ -21,15 +26,22 @@ void PrintMeasurement(const char* where, const std::vector<MethodMeasurement>& l
   }
 }
 
+std::string List(const std::map<std::string, std::string>& defaults) {
+  std::string s;
+  for (const auto& [key, value] : defaults) s += (s.empty() ? "" : ", ") + key + "=" + value;
+  return s;
+}
+
 void PrintMethods() {
+  std::printf("every method (--param)\n  parameters: %s\n", List(RenderOptionDefaults()).c_str());
   const MethodChooser& chooser = MethodChooser::BuiltIn();
   for (const GatherMethodInfo& info : GatherMethods()) {
     std::printf("%s\n", info.name.c_str());
     const OptionMap none;
-    info.create(none);
-    std::string defaults;
-    for (const auto& [key, value] : none.defaults_read())
-      defaults += (defaults.empty() ? "" : ", ") + key + "=" + value;
+    const std::unique_ptr<GatherMethod> method = info.create(none);
+    // The keys whose meaning depends on the method (coverage paths, a film method's tiles).
+    ReadMethodRenderOptions(none, *method);
+    const std::string defaults = List(none.defaults_read());
     std::printf("  parameters: %s\n", defaults.empty() ? "(none)" : defaults.c_str());
     if (!info.sweep.empty()) std::printf("  bench sweep: %s\n", info.sweep.c_str());
     PrintMeasurement("surfaces", chooser.surface(), info.name);

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# Renders every shared scene and every project scene with auto, brute, mrcs and path using two
-# lightfarm builds, and compares the pixels (oiiotool, zero tolerance) and the stats JSON (times
+# Renders every shared scene and every project scene with every method (auto and each one the old
+# build's `lightfarm methods` lists) using two lightfarm builds, and compares the pixels (oiiotool, zero tolerance) and the stats JSON (times
 # removed; keys only the new build has are listed, not failures). For refactors that must not
 # change a bit: `scripts/compare-builds.sh OLD/lightfarm build/lightfarm`. Exit 1 when anything
 # differs.
@@ -12,10 +12,13 @@ tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 scenes=()
 for s in "$shared"/scenes/*/scene.pbrt "$root"/scenes/*/scene.pbrt; do [ -f "$s" ] && scenes+=("$s"); done
+# The methods: auto, then every one the old build lists (a line without indentation, the renderer-wide
+# "every method" line aside).
+methods=(auto $("$1" methods | grep -E '^[a-z][a-z-]*$'))
 compared=0 differ=0
 for scene in "${scenes[@]}"; do
   name=$(basename "$(dirname "$scene")")-$(echo "$scene" | md5sum | cut -c1-6)
-  for method in auto brute mrcs path; do
+  for method in "${methods[@]}"; do
     for side in old new; do
       bin=$1; [ $side = new ] && bin=$2
       "$bin" render "$scene" --method $method --resolution 32x24 --spp 2 --lights 1000 --seed 3 \
@@ -52,5 +55,5 @@ PY
     fi
   done
 done
-echo "compared $compared renders (${#scenes[@]} scenes x 4 methods): $differ differences"
+echo "compared $compared renders (${#scenes[@]} scenes x ${#methods[@]} methods: ${methods[*]}): $differ differences"
 [ $differ -eq 0 ]

@@ -1,6 +1,5 @@
 #include "common/matrix/lighting_matrix.h"
 
-#include "common/util/options.h"
 
 #include <embree3/rtcore.h>
 #include <tbb/parallel_for.h>
@@ -177,30 +176,6 @@ RGB LightIntensityTowards(const VirtualLight& L, Vec3 w, const std::vector<Mater
 }
 
 LightingMatrix::~LightingMatrix() = default;
-
-void ReadMatrixParams(const OptionMap& params, uint64_t seed, MatrixOptions* options) {
-  options->segment_samples = int(params.GetInt("segment_samples", 2, 1, 64));
-  // The emitters' single scattering in media: on the camera side with this many samples per
-  // medium piece, or (0) gathered from their columns by the eye segments.
-  options->media_direct_samples = int(params.GetInt("media_direct", 2, 0, 256));
-  options->segment_emitter_columns = options->media_direct_samples == 0;
-  // Path-traced compensation of the clamp, samples per surface receiver (clamp_compensation.cpp).
-  options->compensation_samples = int(params.GetInt("clamp_compensation", 4, 0, 64));
-  // ... and in media: eye segments and surface samples that enter a medium (the scene decides
-  // the default: the matrix's constructor).
-  options->media_compensation = params.Has("media_compensation") ? int(params.GetInt("media_compensation", 0, 0, 1)) : -1;
-  // The element bound's scale (MatrixOptions::bsdf_clamp).
-  options->bsdf_clamp = float(params.GetDouble("bsdf_clamp", 1.0, 0.0, 1e6));
-  options->seed = seed;
-  // Caustic photons (caustic_gather.cpp): the scene decides the default (the matrix's constructor).
-  options->caustic_photons = params.Has("caustic_photons") ? params.GetInt("caustic_photons", 0, 0, 1 << 26) : -1;
-  options->caustic_k = int(params.GetInt("caustic_k", 64, 1, 4096));
-  options->caustic_radius = float(params.GetDouble("caustic_radius", 0.02, 1e-6, 1.0));
-  options->caustic_volume_radius = float(params.GetDouble("caustic_volume_radius", 0.01, 1e-6, 1.0));
-  options->sharp_roughness = params.Has("sharp_roughness") ? float(params.GetDouble("sharp_roughness", 0, 0, 1)) : -1.f;
-  options->sharp_samples = int(params.GetInt("sharp_samples", 8, 1, 256));
-  options->splits = int(params.GetInt("splits", kDefaultSplits, 0, kMaxSplits));
-}
 
 float SharpAlpha(const MatrixOptions& options, size_t lights) {
   if (options.sharp_roughness >= 0) return options.sharp_roughness;

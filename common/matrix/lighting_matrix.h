@@ -87,10 +87,6 @@ struct MatrixOptions {
 float SharpAlpha(const MatrixOptions& options, size_t lights);
 inline constexpr long long kDefaultCausticPhotons = 250000;
 
-class OptionMap;
-// Reads the matrix's --param keys (segment_samples, clamp_compensation) into `options`: the plan
-// and every worker read them through this one function.
-void ReadMatrixParams(const OptionMap& params, uint64_t seed, MatrixOptions* options);
 
 // Per-caller counters (no atomics in the hot path; callers sum them).
 struct MatrixCounters {

@@ -3,8 +3,10 @@
 #include <spdlog/spdlog.h>
 
 #include <chrono>
+#include <functional>
 
 #include "common/render/method_chooser.h"
+#include "common/render/render_options.h"
 #include "common/render/stage_engine.h"
 #include "common/image/film.h"
 #include "common/image/filter.h"
@@ -70,13 +72,6 @@ std::unique_ptr<Scene> BuildSceneFor(const SceneDescription& desc, const RenderS
   return Scene::Build(desc, build);
 }
 
-// The clamp and the matrix's --param keys.
-void ReadPlanMatrixOptions(const OptionMap& params, const RenderSettings& settings, double clamp, Plan* plan) {
-  plan->clamp = clamp;
-  plan->matrix_options.clamp = float(clamp);
-  ReadMatrixParams(params, settings.seed, &plan->matrix_options);
-}
-
 // `auto` resolved on the scene's effects (MethodChooser::ForScene), or the method named. A
 // choice that carries settings adds them to `params` (a key the user set wins).
 void ChooseMethod(const RenderSettings& settings, OptionMap* params, Plan* plan) {
@@ -128,86 +123,39 @@ void AttachMatrix(const RenderSettings& settings, Plan* plan) {
 
 }  // namespace
 
-Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, PhaseTimes* times) {
+namespace {
+
+// BuildPlan's steps; `scene` gives the scene description once the settings are checked.
+Plan BuildPlanWith(const std::function<const SceneDescription&()>& scene_desc, const RenderSettings& settings,
+                   PhaseTimes* times) {
   PhaseTimer timer(times);
   OptionMap params = OptionMap::Parse(settings.params);
   Plan plan;
-  ReadPlanMatrixOptions(params, settings, params.GetDouble("clamp", 0.01, 0.0, 1.0), &plan);
-  float direct_fraction = float(params.GetDouble("direct_fraction", 0.5, 0.0, 1.0));
-  SlicingOptions slicing;
-  slicing.rows_per_slice = size_t(params.GetInt("rows_per_slice", 800, 1, 1 << 24));
-  slicing.seed = settings.seed;
-  // Media rows: eye segments of equal in-scattering weight, h + 1 per piece light cannot cross
-  // (receivers.h, AppendEyeSegments). Huo 2016 cuts every eye ray at h = 16 points; here h = 0
-  // (one row per medium piece, trimmed to the density) renders the media scenes as fast at equal
-  // error with fewer rows (docs/methods/media-elements.md).
-  const int segments_per_ray = int(params.GetInt("segments_per_ray", 0, 0, 1024));
-  // VRL columns: pieces of equal in-scattering weight per VRL (light_generation.h).
-  const int vrl_pieces = int(params.GetInt("vrl_pieces", 4, 1, 1024));
-  // Eye-segment slices (Huo 2016, Sec. 4; segment_slicing.h): K = 0.008 × eye rays, clamped to
-  // an average of [5/8, 5/4] × segment_rows_per_slice segments per slice (500–1000 for the
-  // default 800, the range the paper reports); segment_refine=1 splits segments across slice
-  // boundaries (segment_boundary: halves, or svm as the paper) and segment_merge (2.5) rejoins
-  // similar pieces (off by default: on
-  // volumetric-caustic it changed adaptive-completion's error by less than its noise with near
-  // lights, and made it worse without; docs/rendering.md).
-  SegmentSlicingOptions segment_slicing;
-  {
-    const size_t target = size_t(params.GetInt("segment_rows_per_slice", 800, 1, 1 << 24));
-    segment_slicing.min_rows_per_slice = std::max<size_t>(1, target * 5 / 8);
-    segment_slicing.max_rows_per_slice = std::max<size_t>(1, target * 5 / 4);
-    segment_slicing.refine = params.GetBool("segment_refine", false);
-    segment_slicing.merge_threshold = float(params.GetDouble("segment_merge", 2.5, 0.0, 4.0));
-    const std::string boundary = params.GetString("segment_boundary", "halves");
-    if (boundary != "halves" && boundary != "svm")
-      throw OptionError("--param segment_boundary=" + boundary + ": expected halves or svm");
-    segment_slicing.boundary = boundary == "svm" ? SegmentBoundary::kSvm : SegmentBoundary::kHalves;
-    segment_slicing.seed = settings.seed;
-  }
-  // Camera-side paths per pixel (receivers.h, ReceiverOptions::camera_paths); -1: the default
-  // the scene calls for (CameraPathsFor).
-  const int camera_paths = params.Has("camera_paths") ? int(params.GetInt("camera_paths", 0, 0, 4096)) : -1;
-  // Lights particle paths leave in media: VRLs (Novák 2012; default) or medium VPLs.
-  const std::string media_lights_name = params.GetString("media_lights", "vrl");
-  if (media_lights_name != "vrl" && media_lights_name != "vpl")
-    throw OptionError("--param media_lights=" + media_lights_name + ": expected vrl or vpl");
-  const MediumLights media_lights =
-      media_lights_name == "vrl" ? MediumLights::kVRL : MediumLights::kVPL;
+  const RenderOptions options = ReadRenderOptions(params, settings.seed);
+  plan.clamp = options.clamp;
+  plan.matrix_options = options.matrix;
   // `auto` resolves once the scene's effects are known (below); until then only its own
   // parameter can be checked, and a typo in the others is reported after the scene is built.
   const bool auto_method = settings.method == kAutoMethod;
-  // Film methods' tiling (FilmTasks): read only for them, so a matrix method rejects the keys (and
-  // the film methods reject coverage).
-  // Matrix methods' coverage paths per receiver sample (receivers.h, ReceiverOptions::coverage),
-  // one for a method whose rows should not be coverage points (GatherMethod::takes_coverage_rows).
-  int film_tile = 0, film_pass_spp = 0, coverage = 1;
-  auto read_method_params = [&] {
-    if (!plan.method->renders_film()) {
-      coverage = int(params.GetInt("coverage", plan.method->takes_coverage_rows() ? kDefaultCoverage : 1, 1,
-                                   kMaxCoverage));
-      return;
-    }
-    film_tile = int(params.GetInt("tile", 32, 1, 4096));
-    film_pass_spp = int(params.GetInt("pass_spp", 64, 1, 1 << 20));
-  };
+  MethodRenderOptions method_options;
   if (auto_method) {
     CheckGatherMethodOptions(settings.method, params);
   } else {
     ChooseMethod(settings, &params, &plan);
-    read_method_params();
+    method_options = ReadMethodRenderOptions(params, *plan.method);
     params.RejectUnused();
   }
   if (settings.spp < 0) throw OptionError("--spp must be >= 1 (or 0 for the method's default)");
   if (settings.lights < 1) throw OptionError("--lights must be >= 1");
 
-  SceneDescription desc = ParseSceneFile(scene_path);
+  const SceneDescription& desc = scene_desc();
   timer.End("parse");
   plan.scene = BuildSceneFor(desc, settings);
   const Scene& scene = *plan.scene;
   plan.effects = ComputeEffects(scene);
   if (auto_method) {
     ChooseMethod(settings, &params, &plan);
-    read_method_params();
+    method_options = ReadMethodRenderOptions(params, *plan.method);
     params.RejectUnused();
   }
   if (plan.method->renders_film()) {
@@ -219,8 +167,8 @@ Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, Ph
     plan.receivers->height = scene.hints().height;
     plan.receivers->spp = settings.spp > 0 ? settings.spp : std::max(1, scene.hints().pixel_samples);
     AttachMatrix(settings, &plan);
-    plan.tasks = FilmTasks(plan.receivers->width, plan.receivers->height, plan.receivers->spp, film_tile,
-                           film_pass_spp, settings.seed);
+    plan.tasks = FilmTasks(plan.receivers->width, plan.receivers->height, plan.receivers->spp,
+                           method_options.film_tile, method_options.film_pass_spp, settings.seed);
     timer.End("plan");
     return plan;
   }
@@ -241,25 +189,25 @@ Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, Ph
   ropt.spp = std::max(1, settings.spp);
   ropt.seed = settings.seed;
   ropt.max_depth = scene.hints().max_depth;
-  ropt.segments_per_ray = media_rows ? segments_per_ray : -1;
+  ropt.segments_per_ray = media_rows ? options.segments_per_ray : -1;
   ropt.media_direct_samples = media_rows ? plan.matrix_options.media_direct_samples : 0;
   ropt.sharp_samples = plan.matrix_options.sharp_samples;
   ropt.splits = plan.matrix_options.splits;
-  ropt.coverage = coverage;
-  ropt.camera_paths = camera_paths >= 0 ? camera_paths : CameraPathsFor(scene, plan.effects, ropt.media_direct_samples > 0);
+  ropt.coverage = method_options.coverage;
+  ropt.camera_paths = options.camera_paths.value_or(CameraPathsFor(scene, plan.effects, ropt.media_direct_samples > 0));
   *plan.receivers = GenerateReceivers(scene, filter_sampler, ropt);
   timer.End("receivers");
   // Segment slices before anything refers to the segments: refinement may split some of them.
-  std::vector<Slice> segment_slices = SliceSegments(scene, plan.receivers.get(), segment_slicing);
+  std::vector<Slice> segment_slices = SliceSegments(scene, plan.receivers.get(), options.segment_slicing);
   if (!segment_slices.empty()) timer.End("segment_slicing");
 
   LightGenerationOptions lopt;
   lopt.target_lights = settings.lights;
-  lopt.direct_fraction = direct_fraction;
+  lopt.direct_fraction = options.direct_fraction;
   lopt.max_depth = scene.hints().max_depth;
   lopt.seed = settings.seed;
-  lopt.medium_lights = media_rows ? media_lights : MediumLights::kNone;
-  lopt.vrl_pieces = vrl_pieces;
+  lopt.medium_lights = media_rows ? options.media_lights : MediumLights::kNone;
+  lopt.vrl_pieces = options.vrl_pieces;
   *plan.lights = GenerateLights(scene, lopt);
   plan.light_options = lopt;
   timer.End("lights");
@@ -267,7 +215,7 @@ Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, Ph
   if (plan.tree) timer.End("light_tree");
   // Row tiles: slices of receivers clustered by position and normal (slicing.h), one task each.
   std::vector<Slice> slices =
-      SliceReceivers(*plan.receivers, Length(scene.bounds().Diagonal()), slicing);
+      SliceReceivers(*plan.receivers, Length(scene.bounds().Diagonal()), options.slicing);
   for (Slice& slice : slices) {
     SubMatrixTask task;
     task.task_id = uint32_t(plan.tasks.size());
@@ -293,11 +241,29 @@ Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, Ph
   return plan;
 }
 
+}  // namespace
+
+Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, PhaseTimes* times) {
+  SceneDescription parsed;
+  return BuildPlanWith(
+      [&]() -> const SceneDescription& {
+        parsed = ParseSceneFile(scene_path);
+        return parsed;
+      },
+      settings, times);
+}
+
+Plan BuildPlan(const SceneDescription& desc, const RenderSettings& settings, PhaseTimes* times) {
+  return BuildPlanWith([&]() -> const SceneDescription& { return desc; }, settings, times);
+}
+
 Plan RebuildPlan(const SceneDescription& desc, const RenderSettings& settings, double clamp, LightSet lights,
                  ReceiverSet receivers) {
   OptionMap params = OptionMap::Parse(settings.params);
   Plan plan;
-  ReadPlanMatrixOptions(params, settings, clamp, &plan);
+  plan.clamp = clamp;
+  plan.matrix_options = ReadRenderOptions(params, settings.seed).matrix;
+  plan.matrix_options.clamp = float(clamp);
   plan.scene = BuildSceneFor(desc, settings);
   plan.effects = ComputeEffects(*plan.scene);
   ChooseMethod(settings, &params, &plan);

@@ -67,6 +67,8 @@ struct PhaseTimes {
 // Parses and builds the scene and creates everything the gather needs. Validates settings and
 // --param first, so a typo fails before any expensive work.
 Plan BuildPlan(const std::string& scene_path, const RenderSettings& settings, PhaseTimes* times);
+// The same from a parsed scene (SceneCache: the farm parses a job's scene once per process).
+Plan BuildPlan(const SceneDescription& desc, const RenderSettings& settings, PhaseTimes* times);
 
 // The plan a worker runs tasks of, rebuilt from the coordinator's: the scene from its
 // description, the plan's clamp, virtual lights and receivers; the method, the sharp-lobe split,

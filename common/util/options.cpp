@@ -79,6 +79,24 @@ long long OptionMap::GetInt(const std::string& key, long long def, long long lo,
   return i;
 }
 
+std::optional<double> OptionMap::GetOptionalDouble(const std::string& key, double lo, double hi,
+                                                   const std::string& default_text) const {
+  if (!Has(key)) {
+    defaults_.emplace(key, default_text);
+    return std::nullopt;
+  }
+  return GetDouble(key, 0, lo, hi);
+}
+
+std::optional<long long> OptionMap::GetOptionalInt(const std::string& key, long long lo, long long hi,
+                                                   const std::string& default_text) const {
+  if (!Has(key)) {
+    defaults_.emplace(key, default_text);
+    return std::nullopt;
+  }
+  return GetInt(key, 0, lo, hi);
+}
+
 bool OptionMap::GetBool(const std::string& key, bool def) const {
   const std::string* v = Lookup(key);
   if (!v) {

@@ -5,6 +5,7 @@
 #pragma once
 
 #include <map>
+#include <optional>
 #include <set>
 #include <string>
 #include <vector>
@@ -24,6 +25,12 @@ class OptionMap {
   long long GetInt(const std::string& key, long long def, long long lo, long long hi) const;
   bool GetBool(const std::string& key, bool def) const;
   std::string GetString(const std::string& key, const std::string& def) const;
+  // A key whose default the caller derives (from the scene, the light count, another key):
+  // nullopt when absent, and `default_text` says what it falls back to (defaults_read).
+  std::optional<double> GetOptionalDouble(const std::string& key, double lo, double hi,
+                                          const std::string& default_text) const;
+  std::optional<long long> GetOptionalInt(const std::string& key, long long lo, long long hi,
+                                          const std::string& default_text) const;
   bool Has(const std::string& key) const { return values_.count(key) != 0; }
   // Adds "key=value" entries whose key is not set (a value the user gave wins); throws
   // OptionError on a malformed entry.

@@ -3,13 +3,17 @@
 // parameters for a target error are accepted too; `auto`'s measurements are sane numbers.
 #include <gtest/gtest.h>
 
+#include <fstream>
 #include <set>
+#include <sstream>
 #include <string>
 
 #include "common/evaluation/sweeps.h"
 #include "common/gather/gather.h"
 #include "common/render/method_chooser.h"
+#include "common/render/render_options.h"
 #include "common/util/error.h"
+#include "tests/common/test_util.h"
 
 namespace lightfarm {
 namespace test_method_info {
@@ -87,6 +91,69 @@ TEST(MethodInfo, DefaultSettingsAreRecognisedFromTheMethodsOwnReads) {
   EXPECT_FALSE(IsMethodDefault("mrcs", {"rows=300", "columns=900"}));
   EXPECT_FALSE(IsMethodDefault("lightcuts", {"no_such_key=1"}));
   EXPECT_FALSE(IsMethodDefault("no-such-method", {}));
+}
+
+// The renderer-wide keys are read in one place (render_options.h) with their defaults, and each
+// is documented in the README's option table (`--param key=...`, or a backticked `key` in the
+// row of the key it qualifies).
+TEST(RenderOptions, EveryRendererKeyHasADefaultAndIsDocumented) {
+  const std::map<std::string, std::string> defaults = RenderOptionDefaults();
+  EXPECT_GE(defaults.size(), 20u);
+  std::ifstream in(testing::SourcePath("README.md"));
+  ASSERT_TRUE(in) << "README.md";
+  std::stringstream readme;
+  readme << in.rdbuf();
+  for (const auto& [key, value] : defaults) {
+    EXPECT_FALSE(value.empty()) << key;
+    const bool documented = readme.str().find("`--param " + key + "=") != std::string::npos ||
+                            readme.str().find("`" + key + "`") != std::string::npos ||
+                            readme.str().find("`" + key + "=") != std::string::npos;
+    EXPECT_TRUE(documented) << "--param " << key << " is not in README.md's option table";
+  }
+}
+
+// What a render reads is what it was given, and nothing it does not know passes silently.
+TEST(RenderOptions, ValuesAreTypedAndCheckedAndTheSceneDecidesWhatIsAbsent) {
+  OptionMap params = OptionMap::Parse({"clamp=0.05", "camera_paths=7", "segment_boundary=svm", "vrl_pieces=2"});
+  const RenderOptions o = ReadRenderOptions(params, 9);
+  EXPECT_DOUBLE_EQ(o.clamp, 0.05);
+  EXPECT_FLOAT_EQ(o.matrix.clamp, 0.05f);
+  ASSERT_TRUE(o.camera_paths.has_value());
+  EXPECT_EQ(*o.camera_paths, 7);
+  EXPECT_EQ(o.segment_slicing.boundary, SegmentBoundary::kSvm);
+  EXPECT_EQ(o.vrl_pieces, 2);
+  EXPECT_EQ(o.matrix.seed, 9u);
+  EXPECT_NO_THROW(params.RejectUnused());
+  // Absent keys the scene decides stay undecided here, and say so in the defaults.
+  const OptionMap none;
+  const RenderOptions d = ReadRenderOptions(none, 0);
+  EXPECT_FALSE(d.camera_paths.has_value());
+  EXPECT_EQ(d.matrix.caustic_photons, -1);
+  EXPECT_EQ(d.matrix.media_compensation, -1);
+  EXPECT_LT(d.matrix.sharp_roughness, 0.f);
+  EXPECT_NE(none.defaults_read().at("caustic_photons").find("scene"), std::string::npos);
+  for (const char* bad : {"clamp=2", "segment_boundary=svn", "media_lights=photons", "camera_paths=x",
+                          "media_compensation=2"}) {
+    OptionMap p = OptionMap::Parse({bad});
+    EXPECT_THROW(ReadRenderOptions(p, 0), OptionError) << bad;
+  }
+  // A key no reader knows is an error naming it.
+  OptionMap typo = OptionMap::Parse({"clamb=0.1"});
+  ReadRenderOptions(typo, 0);
+  try {
+    typo.RejectUnused();
+    ADD_FAILURE() << "clamb passed";
+  } catch (const OptionError& e) {
+    EXPECT_NE(std::string(e.what()).find("clamb"), std::string::npos);
+  }
+  // The method's keys: coverage for matrix methods, tiles for film methods, each rejected by the other.
+  OptionMap film = OptionMap::Parse({"tile=8", "coverage=4"});
+  const std::unique_ptr<GatherMethod> path = CreateGatherMethod("path", film);
+  EXPECT_EQ(ReadMethodRenderOptions(film, *path).film_tile, 8);
+  EXPECT_THROW(film.RejectUnused(), OptionError);
+  OptionMap matrix = OptionMap::Parse({"coverage=4"});
+  EXPECT_EQ(ReadMethodRenderOptions(matrix, *CreateGatherMethod("brute", matrix)).coverage, 4);
+  EXPECT_NO_THROW(matrix.RejectUnused());
 }
 
 }  // namespace test_method_info
