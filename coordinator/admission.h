@@ -12,7 +12,6 @@
 #include "common/farm/job_types.h"
 #include "common/render/render_job.h"
 #include "coordinator/farm_error.h"
-#include "lightfarm/v1/render.pb.h"
 
 namespace lightfarm {
 
@@ -22,13 +21,17 @@ struct AdmissionLimits {
   int max_spp = 4096;
 };
 
-// The admitted job in the scheduler's plain types (converted once, here). Throws FarmError
-// naming what is wrong; `stored(sha)` says whether the blob store has a file.
-struct AdmittedJob {
+// A job as a client submits it, in the scheduler's plain types (the gRPC service converts the
+// wire's SubmitJobRequest).
+struct JobRequest {
+  std::string name;
+  int priority = 0;
   SceneManifest manifest;
   RenderSettings settings;
 };
-AdmittedJob CheckSubmission(const v1::SubmitJobRequest& request, const AdmissionLimits& limits,
-                            const std::function<bool(const std::string& sha256)>& stored);
+
+// Throws FarmError naming what is wrong; `stored(sha)` says whether the blob store has a file.
+void CheckSubmission(const JobRequest& request, const AdmissionLimits& limits,
+                     const std::function<bool(const std::string& sha256)>& stored);
 
 }  // namespace lightfarm

@@ -8,7 +8,6 @@
 #include <random>
 #include <sstream>
 
-#include "common/farm/proto_convert.h"
 #include "common/render/stage_engine.h"
 #include "common/util/error.h"
 
@@ -140,12 +139,8 @@ void Coordinator::Start() {
     job.priority = r.priority;
     job.state = r.state;
     // The store keeps the request as submitted (the wire's bytes); the scheduler, plain types.
-    v1::SceneManifest manifest;
-    v1::RenderSettings settings;
-    manifest.ParseFromString(r.manifest);
-    settings.ParseFromString(r.settings);
-    job.manifest = FromProto(manifest);
-    job.settings = FromProto(settings);
+    job.manifest = std::move(r.manifest);
+    job.settings = std::move(r.settings);
     job.stage = r.stage;
     job.error = r.error;
     job.result_sha = r.result_sha;
@@ -210,16 +205,13 @@ std::vector<std::string> Coordinator::FindMissingBlobs(const std::vector<std::st
   return missing;
 }
 
-std::string Coordinator::Submit(const v1::SubmitJobRequest& req) {
+std::string Coordinator::Submit(const JobRequest& req) {
   if (draining_) throw FarmError(Code::kUnavailable, "coordinator is shutting down; submit again later");
   if (storage_.full() || storage_.Low()) throw FarmError(Code::kResourceExhausted, storage_.FullMessage());
   // From the check that its files are stored to the job's insertion, no collection runs.
   std::lock_guard gc(gc_mu_);
-  AdmittedJob admitted =
-      CheckSubmission(req, AdmissionLimits{options_.max_resolution, options_.max_lights, options_.max_spp},
-                      [this](const std::string& sha) { return blobs_->Has(sha); });
-  const v1::SceneManifest& m = req.scene();
-  const v1::RenderSettings& s = req.settings();
+  CheckSubmission(req, AdmissionLimits{options_.max_resolution, options_.max_lights, options_.max_spp},
+                  [this](const std::string& sha) { return blobs_->Has(sha); });
   std::lock_guard lock(mu_);
   int unfinished = 0;
   for (const auto& [id, j] : jobs_) unfinished += !IsTerminal(j.state);
@@ -227,11 +219,11 @@ std::string Coordinator::Submit(const v1::SubmitJobRequest& req) {
     throw FarmError(Code::kResourceExhausted, "the queue is full (" + std::to_string(unfinished) +
                                                   " unfinished jobs; limit --max-queued-jobs)");
   JobRecord r;
-  r.name = req.name();
-  r.priority = req.priority();
+  r.name = req.name;
+  r.priority = req.priority;
   r.state = JobState::kQueued;
-  r.manifest = m.SerializeAsString();
-  r.settings = s.SerializeAsString();
+  r.manifest = req.manifest;
+  r.settings = req.settings;
   Job job;
   try {
     job.id = store_->InsertJob(r);
@@ -239,16 +231,16 @@ std::string Coordinator::Submit(const v1::SubmitJobRequest& req) {
     storage_.NoteFull(e.what());
     throw FarmError(Code::kResourceExhausted, storage_.FullMessage());
   }
-  job.name = req.name();
-  job.priority = req.priority();
-  job.manifest = std::move(admitted.manifest);
-  job.settings = std::move(admitted.settings);
+  job.name = req.name;
+  job.priority = req.priority;
+  job.manifest = req.manifest;
+  job.settings = req.settings;
   job.passes = job.settings.progressive;
   if (job.passes.progressive()) job.acc = std::make_shared<const PassAccumulator>();
   const int64_t id = job.id;
   jobs_.emplace(id, std::move(job));
   ++counters_.submitted;
-  spdlog::info("job {}: submitted ({}, {} files)", id, s.method(), m.files_size());
+  spdlog::info("job {}: submitted ({}, {} files)", id, req.settings.method, req.manifest.files.size());
   MaybeStartPlanningLocked();
   return std::to_string(id);
 }
@@ -624,13 +616,8 @@ LeaseGrant Coordinator::Lease(const std::string& worker_id) {
   grant.lease_id = std::to_string(job.id) + "." + std::to_string(job.stage) + "." +
                    std::to_string(best_task) + "." + std::to_string(task.attempt_row);
   worker.lease = grant.lease_id;
-  v1::JobContext& ctx = grant.job;
-  ctx.set_job_id(std::to_string(job.id));
-  *ctx.mutable_scene() = ToProto(job.manifest);
-  *ctx.mutable_settings() = ToProto(PassSettings(job));
-  ctx.set_clamp(job.clamp);
-  ctx.set_lights_sha256(job.lights_sha);
-  ctx.set_receivers_sha256(job.receivers_sha);
+  grant.job = LeasedJob{std::to_string(job.id), job.manifest, PassSettings(job), float(job.clamp),
+                        job.lights_sha, job.receivers_sha};
   grant.task = task.spec;
   grant.artifact_sha = job.artifact_sha;
   return grant;

@@ -34,8 +34,6 @@
 #include "coordinator/job_store.h"
 #include "coordinator/storage_guard.h"
 #include "coordinator/thread_pool.h"
-#include "lightfarm/v1/render.pb.h"
-#include "lightfarm/v1/worker.pb.h"
 
 namespace lightfarm {
 
@@ -79,10 +77,21 @@ struct CoordinatorOptions {
   std::function<void(const std::string& job_id, const Image& image)> on_result;
 };
 
+// What a worker needs of a task's job to rebuild its plan (RebuildPlan): the scene, the pass's
+// settings, the plan's clamp and the light and receiver sets by content hash.
+struct LeasedJob {
+  std::string job_id;
+  SceneManifest manifest;
+  RenderSettings settings;
+  float clamp = 0;
+  std::string lights_sha;
+  std::string receivers_sha;
+};
+
 struct LeaseGrant {
   bool has_task = false;
   std::string lease_id;
-  v1::JobContext job;
+  LeasedJob job;
   Bytes task;
   std::string artifact_sha;
 };
@@ -114,7 +123,7 @@ class Coordinator {
 
   // --- client API ---
   std::vector<std::string> FindMissingBlobs(const std::vector<std::string>& hashes) const;
-  std::string Submit(const v1::SubmitJobRequest& request);
+  std::string Submit(const JobRequest& request);
   JobSnapshot GetJob(const std::string& job_id);
   std::vector<JobSnapshot> ListJobs();
   JobSnapshot Cancel(const std::string& job_id);

@@ -5,6 +5,7 @@
 #include <chrono>
 #include <stdexcept>
 
+#include "common/farm/proto_convert.h"
 #include "coordinator/storage_full.h"
 
 namespace lightfarm {
@@ -232,7 +233,7 @@ int64_t JobStore::InsertJob(const JobRecord& j) {
   std::lock_guard lock(mu_);
   Stmt s(db_, "INSERT INTO jobs(name, priority, state, manifest, settings, created) "
               "VALUES(?, ?, ?, ?, ?, ?)");
-  s.Bind(j.name).Bind(j.priority).Bind(int(j.state)).BindBlob(j.manifest).BindBlob(j.settings).Bind(Now()).Step();
+  s.Bind(j.name).Bind(j.priority).Bind(int(j.state)).BindBlob(EncodeManifest(j.manifest)).BindBlob(EncodeSettings(j.settings)).Bind(Now()).Step();
   return sqlite3_last_insert_rowid(db_);
 }
 
@@ -353,8 +354,8 @@ std::vector<JobRecord> JobStore::LoadJobs() {
     j.name = s.Str(1);
     j.priority = int(s.Int(2));
     j.state = JobState(int(s.Int(3)));
-    j.manifest = s.Str(4);
-    j.settings = s.Str(5);
+    j.manifest = DecodeManifest(s.Str(4));
+    j.settings = DecodeSettings(s.Str(5));
     j.stage = int(s.Int(6));
     j.error = s.Str(7);
     j.created = s.Real(8);

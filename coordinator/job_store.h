@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "common/farm/job_types.h"
+#include "common/render/render_job.h"
 
 struct sqlite3;
 struct sqlite3_stmt;
@@ -25,8 +26,8 @@ struct JobRecord {
   std::string name;
   int priority = 0;
   JobState state = JobState::kQueued;
-  std::string manifest;     // the request as submitted: serialized v1::SceneManifest
-  std::string settings;     // and serialized v1::RenderSettings
+  SceneManifest manifest;   // the request as submitted (kept in the wire's encoding,
+  RenderSettings settings;  // proto_convert.h, so an older store reads the same)
   int stage = 0;
   std::string error;
   double created = 0;       // unix seconds

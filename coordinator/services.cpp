@@ -452,7 +452,9 @@ class FarmServer::RenderServiceImpl final : public v1::RenderService::CallbackSe
 
   grpc::ServerUnaryReactor* SubmitJob(grpc::CallbackServerContext* ctx, const v1::SubmitJobRequest* req,
                                       v1::SubmitJobResponse* resp) override {
-    return Unary(ctx, [this, req, resp] { resp->set_job_id(c_.Submit(*req)); });
+    return Unary(ctx, [this, req, resp] {
+      resp->set_job_id(c_.Submit(JobRequest{req->name(), req->priority(), FromProto(req->scene()), FromProto(req->settings())}));
+    });
   }
   grpc::ServerUnaryReactor* GetJob(grpc::CallbackServerContext* ctx, const v1::GetJobRequest* req,
                                    v1::JobStatus* resp) override {
@@ -618,7 +620,13 @@ class FarmServer::WorkerServiceImpl final : public v1::WorkerService::CallbackSe
     resp->set_lease_timeout_ms(c_.lease_timeout_ms());
     if (!g.has_task) return;
     resp->set_lease_id(g.lease_id);
-    *resp->mutable_job() = std::move(g.job);
+    v1::JobContext& job = *resp->mutable_job();
+    job.set_job_id(g.job.job_id);
+    *job.mutable_scene() = ToProto(g.job.manifest);
+    *job.mutable_settings() = ToProto(g.job.settings);
+    job.set_clamp(g.job.clamp);
+    job.set_lights_sha256(g.job.lights_sha);
+    job.set_receivers_sha256(g.job.receivers_sha);
     resp->set_task(std::string(g.task.begin(), g.task.end()));
     resp->set_artifact_sha256(g.artifact_sha);
   }

@@ -77,6 +77,22 @@ SceneManifest FromProto(const v1::SceneManifest& p) {
   return m;
 }
 
+std::string EncodeManifest(const SceneManifest& m) { return ToProto(m).SerializeAsString(); }
+
+SceneManifest DecodeManifest(const std::string& bytes) {
+  v1::SceneManifest p;
+  p.ParseFromString(bytes);
+  return FromProto(p);
+}
+
+std::string EncodeSettings(const RenderSettings& s) { return ToProto(s).SerializeAsString(); }
+
+RenderSettings DecodeSettings(const std::string& bytes) {
+  v1::RenderSettings p;
+  p.ParseFromString(bytes);
+  return FromProto(p);
+}
+
 const char* JobStateName(v1::JobState state) {
   return state >= v1::JOB_STATE_QUEUED && state <= v1::JOB_STATE_CANCELLED ? JobStateName(FromProto(state))
                                                                             : "unknown";
