@@ -7,6 +7,7 @@
 
 #include "common/farm/proto_convert.h"
 #include "common/render/stage_engine.h"
+#include "common/scene/scene_cache.h"
 #include "common/util/error.h"
 
 namespace lightfarm {
@@ -46,7 +47,11 @@ PlannedStage JobPlanner::PlanStage(int64_t id, const SceneManifest& manifest, co
   MaterializeScene(manifest, dir);
   PlannedStage out;
   try {
-    out.plan = std::make_shared<Plan>(BuildPlan(dir + "/" + manifest.root, settings, &out.times));
+    // Parsed once per job (and once per embedded process: the client's parse), each pass after
+    // the first from the cache.
+    const std::shared_ptr<const SceneDescription> desc =
+        SceneCache::Process().Get(manifest.ContentKey(), dir, manifest.root);
+    out.plan = std::make_shared<Plan>(BuildPlan(*desc, settings, &out.times));
   } catch (const SceneError& e) {
     // Name the file as the user knows it: relative to the scene's directory.
     throw std::runtime_error(ReplaceAll(e.what(), dir + "/", ""));

@@ -17,7 +17,7 @@
 #include "common/farm/rpc.h"
 #include "common/render/serialize.h"
 #include "common/util/file.h"
-#include "common/scene/scene_description.h"
+#include "common/scene/scene_cache.h"
 
 namespace lightfarm {
 
@@ -269,7 +269,11 @@ std::shared_ptr<Worker::JobRuntime> Worker::Runtime(const v1::JobContext& job) {
     fs::copy_file(FetchBlob(f.sha256()), dir / rel);
   }
   const RenderSettings settings = FromProto(job.settings());
-  rt->plan = RebuildPlan(ParseSceneFile((dir / job.scene().root()).string()), settings, job.clamp(),
+  // Parsed once per job in this process (a later pass, or the coordinator or client of an
+  // embedded render, finds it in the cache).
+  const std::shared_ptr<const SceneDescription> desc =
+      SceneCache::Process().Get(FromProto(job.scene()).ContentKey(), dir.string(), job.scene().root());
+  rt->plan = RebuildPlan(*desc, settings, job.clamp(),
                          DeserializeLightSet(ReadBytes(FetchBlob(job.lights_sha256()))),
                          DeserializeReceiverSet(ReadBytes(FetchBlob(job.receivers_sha256()))));
   runtime_ = rt;

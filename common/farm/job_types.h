@@ -24,6 +24,13 @@ struct SceneFileRef {
 struct SceneManifest {
   std::string root;  // the root .pbrt file's path among `files`
   std::vector<SceneFileRef> files;
+  // What identifies the scene's content wherever it is materialized (SceneCache's key): the
+  // root's path and every file's path and hash.
+  std::string ContentKey() const {
+    std::string key = root;
+    for (const SceneFileRef& f : files) key += "\n" + f.path + " " + f.sha256;
+    return key;
+  }
   // The root file's hash ("" when it is not among the files).
   std::string RootSha256() const {
     for (const SceneFileRef& f : files)

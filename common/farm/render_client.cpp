@@ -3,12 +3,13 @@
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <thread>
 
 #include "common/farm/content_hash.h"
 #include "common/farm/farm_protocol.h"
 #include "common/farm/proto_convert.h"
-#include "common/scene/scene_description.h"
+#include "common/scene/scene_cache.h"
 #include "common/util/error.h"
 #include "common/util/file.h"
 
@@ -49,10 +50,12 @@ v1::SceneManifest RenderClient::UploadScene(const std::string& scene_path, bool 
   // linked in from elsewhere keeps its place beside the file that names it.
   const auto as_named = [](const fs::path& p) { return fs::absolute(p).lexically_normal(); };
   std::vector<fs::path> files;
+  std::optional<SceneDescription> parsed;
   try {
     // A file the scene names but that does not exist (a missing PLY) is not uploaded: building
     // the scene then fails with the directive's file:line, not with a hashing error.
-    for (const std::string& f : ParseSceneFile(scene_path).files) {
+    parsed = ParseSceneFile(scene_path);
+    for (const std::string& f : parsed->files) {
       const fs::path named = as_named(f);
       if (fs::is_regular_file(named) && std::find(files.begin(), files.end(), named) == files.end())
         files.push_back(named);
@@ -84,6 +87,10 @@ v1::SceneManifest RenderClient::UploadScene(const std::string& scene_path, bool 
   }
   const v1::FindMissingBlobsResponse missing = Call(&v1::RenderService::Stub::FindMissingBlobs, query);
   for (const std::string& sha : missing.missing()) UploadBlob(ReadFile(path_of.at(sha)));
+  // A coordinator or worker in this process (an embedded render) takes the scene from here
+  // instead of parsing it again.
+  if (parsed)
+    SceneCache::Process().Put(FromProto(manifest).ContentKey(), base.string(), manifest.root(), std::move(*parsed));
   return manifest;
 }
 

@@ -10,6 +10,7 @@
 #include "cli/embedded_farm.h"
 #include "common/render/progressive.h"
 #include "common/render/render_job.h"
+#include "common/scene/scene_cache.h"
 #include "coordinator/job_progress.h"
 #include "tests/integration/farm_harness.h"
 
@@ -194,6 +195,23 @@ TEST(Progressive, ARunningJobsResultIsItsPassesSoFarAndCancellingKeepsThem) {
   const int kept = nlohmann::json::parse(stats)["passes"].get<int>();
   EXPECT_GE(kept, running_passes);
   EXPECT_TRUE(SameBits(ExrImage(dir, "cancelled.exr", exr), DirectAverage(41, uint32_t(kept), 300, 16)));
+}
+
+// A job's scene is parsed once in a process: the embedded render's client parses it to list the
+// files it uploads; the coordinator (every pass) and both workers take it from the cache.
+TEST(Progressive, AnEmbeddedRenderParsesItsSceneOnce) {
+  TempDir dir;
+  const std::string scene = dir.Write("scene.pbrt", kTinyScene);
+  const uint64_t parses = SceneCache::Process().parses(), hits = SceneCache::Process().hits();
+  RenderSettings s;
+  s.width = s.height = 8;
+  s.lights = 50;
+  s.progressive.passes = 3;
+  const EmbeddedRender out = RenderOnEmbeddedFarm(scene, s, 2);
+  EXPECT_EQ(out.stats["passes"], 3);
+  EXPECT_EQ(SceneCache::Process().parses(), parses);
+  // The coordinator plans each of the 3 passes, and a worker rebuilds each pass it runs.
+  EXPECT_GE(SceneCache::Process().hits() - hits, 3u + 3u);
 }
 
 }  // namespace test_progressive_farm
