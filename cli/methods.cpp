@@ -44,6 +44,9 @@ void PrintMethods() {
     const std::string defaults = List(none.defaults_read());
     std::printf("  parameters: %s\n", defaults.empty() ? "(none)" : defaults.c_str());
     if (!info.sweep.empty()) std::printf("  bench sweep: %s\n", info.sweep.c_str());
+    if (info.name == "brute")
+      std::printf("  auto, surfaces: few lights: brute force up to %zu lights (docs/surface-methods/few-lights)\n",
+                  chooser.brute_max_lights());
     PrintMeasurement("surfaces", chooser.surface(), info.name);
     PrintMeasurement("media", chooser.media(), info.name);
   }

@@ -1,9 +1,9 @@
-# cmake -DOUT=file.cpp -DSURFACE=a.csv|b.csv -DMEDIA=c.csv|d.csv -P embed_measurements.cmake:
+# cmake -DOUT=file.cpp -DSURFACE=a.csv|b.csv -DMEDIA=c.csv|d.csv -DFEW_LIGHTS=e.csv -P embed_measurements.cmake:
 # writes the bench results the method chooser reads (method_chooser.cpp) as C++ raw string
 # literals, one per results.csv, in null-terminated arrays.
 set(body "// Generated from the bench results under docs/ by embed_measurements.cmake; do not edit.\n")
 string(APPEND body "namespace lightfarm {\n\n")
-foreach(pair "SURFACE:kSurfaceMeasurementsCsv" "MEDIA:kMediaMeasurementsCsv")
+foreach(pair "SURFACE:kSurfaceMeasurementsCsv" "MEDIA:kMediaMeasurementsCsv" "FEW_LIGHTS:kFewLightsMeasurementsCsv")
   string(REPLACE ":" ";" parts "${pair}")
   list(GET parts 0 var)
   list(GET parts 1 name)

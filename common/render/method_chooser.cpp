@@ -11,6 +11,8 @@
 // pick, takes hours at a scene's own resolution. With a target, a scene with media chooses among
 // the methods measured on the media scenes (docs/media-methods), else brute force, exact; a
 // surface scene among those measured on cornell-box (docs/surface-methods), else brute force.
+// Without media and with few lights, brute force: exact, and up to the light count the
+// few-lights bench measured it the faster (docs/surface-methods/few-lights, BruteMaxLights).
 // A method qualifies when its worst measured rel_l2 is at most kSafety · target (the
 // measurements are few scenes: keep a margin); the cheapest in shadow rays per pixel wins.
 // Without --param target_error the target is kDefaultTarget (2%).
@@ -33,20 +35,23 @@ namespace lightfarm {
 // results.csv per entry, null-terminated.
 extern const char* const kSurfaceMeasurementsCsv[];
 extern const char* const kMediaMeasurementsCsv[];
+extern const char* const kFewLightsMeasurementsCsv[];
 
 namespace {
 
 constexpr double kDefaultTarget = 0.02;  // rel_l2 when no target_error is given
 constexpr double kSafety = 0.5;          // a method qualifies when measured rel_l2 <= 0.5·target
-// At most this many lights: brute force, exact. Measured at 300 lights: brute casts 199 shadow
-// rays per pixel in 1.0 s, lightcuts 90 in 1.8 s (its bounds cost more than the rays it saves);
-// at 1000 lights brute casts 661 (2.9 s), lightcuts 127 (2.4 s).
-constexpr size_t kBruteMaxLights = 300;
+// What a rule decides on.
+struct RuleInput {
+  const Effects& effects;
+  size_t lights;
+  bool target_given;        // --param target_error was set (else the target is kDefaultTarget)
+  size_t brute_max_lights;  // MethodChooser::brute_max_lights
+};
 
 struct Rule {
   const char* name;
-  // target_given: --param target_error was set (else the target is kDefaultTarget).
-  std::function<bool(const Effects&, size_t lights, bool target_given)> applies;
+  std::function<bool(const RuleInput&)> applies;
   std::vector<std::string> candidates;  // first registered wins; empty: the measured choice
   bool media_measurements = false;      // the measured choice among the media measurements
 };
@@ -54,13 +59,14 @@ struct Rule {
 const std::vector<Rule>& Rules() {
   static const std::vector<Rule> rules = {
       {"media with caustics, equal time against the truth",
-       [](const Effects& e, size_t, bool target) { return e.media && e.caustics() && !target; },
+       [](const RuleInput& in) { return in.effects.media && in.effects.caustics() && !in.target_given; },
        {"adaptive-completion"}},
-      {"media, equal time against the truth", [](const Effects& e, size_t, bool target) { return e.media && !target; },
-       {"path"}},
-      {"media", [](const Effects& e, size_t, bool) { return e.media; }, {}, true},
-      {"few lights", [](const Effects&, size_t n, bool) { return n <= kBruteMaxLights; }, {"brute"}},
-      {"accuracy", [](const Effects&, size_t, bool) { return true; }, {}, false},
+      {"media, equal time against the truth",
+       [](const RuleInput& in) { return in.effects.media && !in.target_given; }, {"path"}},
+      {"media", [](const RuleInput& in) { return in.effects.media; }, {}, true},
+      // Brute force is exact, and up to the measured light count also the fastest.
+      {"few lights", [](const RuleInput& in) { return in.lights <= in.brute_max_lights; }, {"brute"}},
+      {"accuracy", [](const RuleInput&) { return true; }, {}, false},
   };
   return rules;
 }
@@ -273,12 +279,32 @@ bool IsMethodDefault(const std::string& method, const std::vector<std::string>& 
   return true;
 }
 
-MethodChooser::MethodChooser(const std::vector<BenchRow>& surface, const std::vector<BenchRow>& media)
-    : surface_(Measure(surface)), media_(Measure(media)) {}
+size_t BruteMaxLights(const std::vector<BenchRow>& rows) {
+  // Per light count, brute force's median time and the fastest other setting's.
+  std::map<size_t, std::pair<double, double>> times;  // lights -> (brute, fastest other)
+  for (const SettingSummary& s : Summarize(rows)) {
+    auto& [brute, other] = times.try_emplace(s.lights, NAN, NAN).first->second;
+    if (s.method == "brute")
+      brute = s.time_s;
+    else if (std::isnan(other) || s.time_s < other)
+      other = s.time_s;
+  }
+  size_t most = 0;
+  for (const auto& [lights, t] : times) {  // ascending light counts
+    if (!(t.first <= t.second)) break;      // also when either is missing
+    most = lights;
+  }
+  return most;
+}
+
+MethodChooser::MethodChooser(const std::vector<BenchRow>& surface, const std::vector<BenchRow>& media,
+                             const std::vector<BenchRow>& few_lights)
+    : surface_(Measure(surface)), media_(Measure(media)), brute_max_lights_(BruteMaxLights(few_lights)) {}
 
 const MethodChooser& MethodChooser::BuiltIn() {
   static const MethodChooser chooser(ParseBuiltIn(kSurfaceMeasurementsCsv, "built-in surface measurements"),
-                                     ParseBuiltIn(kMediaMeasurementsCsv, "built-in media measurements"));
+                                     ParseBuiltIn(kMediaMeasurementsCsv, "built-in media measurements"),
+                                     ParseBuiltIn(kFewLightsMeasurementsCsv, "built-in few-lights measurements"));
   return chooser;
 }
 
@@ -288,7 +314,7 @@ MethodChoice MethodChooser::ForScene(const Effects& effects, size_t lights, cons
   c.target = target;
   c.metric = "rel_l2 against same-lights brute force";
   for (const Rule& rule : Rules()) {
-    if (!rule.applies(effects, lights, params.Has("target_error"))) continue;
+    if (!rule.applies(RuleInput{effects, lights, params.Has("target_error"), brute_max_lights_})) continue;
     for (const std::string& name : rule.candidates)
       if (Registered(name)) {
         c.method = name;

@@ -57,6 +57,11 @@ struct MethodMeasurement {
   double rays_per_pixel = 0;
 };
 
+// The most lights at which brute force is measured the fastest: the largest light count of the
+// rows (a bench of brute force and other methods at small light counts) up to which, at every
+// count, brute force's median time is at most the fastest other method's. 0 when it never is.
+size_t BruteMaxLights(const std::vector<BenchRow>& rows);
+
 enum class ErrorAgainst { kBrute, kTruth };  // median rel_l2 vs brute, median rel_l1 vs the truth
 struct SettingPick {
   const SettingSummary* summary = nullptr;  // nullptr: `accept` admitted nothing
@@ -69,10 +74,13 @@ SettingPick FastestWithin(const std::vector<SettingSummary>& summaries, ErrorAga
 
 class MethodChooser {
  public:
-  // Bench results of surface scenes and of media scenes (results.csv rows).
-  MethodChooser(const std::vector<BenchRow>& surface, const std::vector<BenchRow>& media);
+  // Bench results of surface scenes, of media scenes, and of brute force against the others at
+  // small light counts (results.csv rows).
+  MethodChooser(const std::vector<BenchRow>& surface, const std::vector<BenchRow>& media,
+                const std::vector<BenchRow>& few_lights);
   // The measurements built into this binary: docs/surface-methods/cornell-box and
-  // docs/media-methods/*, the results.csv `scripts/report-accuracy.sh` writes, compiled in
+  // docs/media-methods/*, the results.csv `scripts/report-accuracy.sh` writes, and
+  // docs/surface-methods/few-lights (`scripts/report-few-lights.sh`), compiled in
   // (CMakeLists.txt), so the coordinator and every worker resolve a job alike.
   static const MethodChooser& BuiltIn();
 
@@ -92,9 +100,12 @@ class MethodChooser {
 
   const std::vector<MethodMeasurement>& surface() const { return surface_; }
   const std::vector<MethodMeasurement>& media() const { return media_; }
+  // Up to this many lights a surface scene renders with brute force (BruteMaxLights).
+  size_t brute_max_lights() const { return brute_max_lights_; }
 
  private:
   std::vector<MethodMeasurement> surface_, media_;
+  size_t brute_max_lights_ = 0;
 };
 
 // Whether bench rows carry errors against the truth.

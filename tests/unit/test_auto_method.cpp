@@ -34,9 +34,12 @@ std::string Resolve(const Effects& e, size_t lights, std::vector<std::string> pa
 
 TEST(AutoMethod, SurfaceScenesResolveByLightCountAndTarget) {
   const Effects e = SurfaceEffects();
-  // Few lights: brute force is cheap and exact.
+  // Few lights: brute force is exact, and measured the faster up to brute_max_lights.
+  const size_t few = MethodChooser::BuiltIn().brute_max_lights();
+  ASSERT_GE(few, 100u) << "the few-lights bench should find brute force the faster at 100 lights";
   EXPECT_EQ(Resolve(e, 1), "brute");
-  EXPECT_EQ(Resolve(e, 300), "brute");
+  EXPECT_EQ(Resolve(e, few), "brute");
+  EXPECT_EQ(Resolve(e, few + 1), "lightcuts");
   // The default target (2%): the cheapest method measured within half of it.
   EXPECT_EQ(Resolve(e, 20000), "lightcuts");
   EXPECT_EQ(Resolve(e, 1000000), "lightcuts");
@@ -143,6 +146,31 @@ TEST(AutoMethod, RenderStatsNameTheResolvedMethod) {
   EXPECT_EQ(brute.stats["method"], "brute");
   EXPECT_EQ(brute.stats["method_requested"], "brute");
   EXPECT_FALSE(brute.stats.contains("method_rule"));
+}
+
+// The few-lights threshold is read off a bench: the largest light count up to which brute force
+// was the faster at every count measured.
+TEST(AutoMethod, BruteForcesLightCountComesFromTheBench) {
+  const auto row = [](size_t lights, const std::string& method, double time) {
+    BenchRow r;
+    r.scene = "s";
+    r.lights = lights;
+    r.method = method;
+    r.setting = method == "brute" ? "reference" : "error=0.02";
+    r.time_total_s = time;
+    return r;
+  };
+  std::vector<BenchRow> rows = {row(100, "brute", 0.5), row(100, "lightcuts", 1.0), row(100, "lightcuts", 1.2),
+                                row(300, "brute", 1.0), row(300, "lightcuts", 1.1), row(300, "lightcuts", 0.9),
+                                row(300, "lightcuts", 1.3), row(1000, "brute", 3.0), row(1000, "lightcuts", 2.0),
+                                row(3000, "brute", 4.0), row(3000, "lightcuts", 5.0)};
+  // At 300 the median of lightcuts' three runs (1.1 s) is above brute's 1.0; at 1000 brute loses,
+  // and a later win (3000, noise) does not count.
+  EXPECT_EQ(BruteMaxLights(rows), 300u);
+  rows[0].time_total_s = 1.5;  // brute loses at the smallest count: never brute
+  EXPECT_EQ(BruteMaxLights(rows), 0u);
+  EXPECT_EQ(BruteMaxLights({}), 0u);
+  EXPECT_EQ(BruteMaxLights({row(100, "lightcuts", 1.0)}), 0u);  // no brute force measured
 }
 
 TEST(AutoMethod, TheCliDefaultsToAuto) {
