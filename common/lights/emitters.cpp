@@ -145,8 +145,18 @@ float EmitterSampler::PdfInfinite(uint32_t emitter, Vec3 w) const {
 
 EmittedRay SampleEmittedRay(const Scene& scene, const EmitterRef& e, Vec3 center, float radius,
                           Rng& rng) {
+  EmissionSample u;
+  u.u1 = {rng.Uniform(), rng.Uniform()};
+  u.u2 = {rng.Uniform(), rng.Uniform()};
+  // Drawn after the two points, and only for a two-sided area light.
+  if (e.kind == EmitterRef::kArea && scene.area_emitters()[e.index].two_sided) u.side = rng.Uniform();
+  return SampleEmittedRay(scene, e, center, radius, u);
+}
+
+EmittedRay SampleEmittedRay(const Scene& scene, const EmitterRef& e, Vec3 center, float radius,
+                            const EmissionSample& u) {
+  const Vec2 u1 = u.u1, u2 = u.u2;
   EmittedRay out;
-  Vec2 u1{rng.Uniform(), rng.Uniform()}, u2{rng.Uniform(), rng.Uniform()};
   switch (e.kind) {
     case EmitterRef::kArea: {
       const AreaEmitter& a = scene.area_emitters()[e.index];
@@ -154,7 +164,7 @@ EmittedRay SampleEmittedRay(const Scene& scene, const EmitterRef& e, Vec3 center
       scene.SampleAreaEmitter(a, u1, &p, &n);
       Vec3 local = SampleCosineHemisphere(u2);
       float side = 1.f;
-      if (a.two_sided && rng.Uniform() < 0.5f) side = -1.f;
+      if (a.two_sided && u.side < 0.5f) side = -1.f;
       Frame f(n * side);
       Vec3 d = f.FromLocal(local);
       if (local.z <= 0) return out;

@@ -38,6 +38,15 @@ struct EmittedRay {
 // direction in their cone; distant and infinite lights: a ray through the disk of `radius`
 // around `center` that bounds the scene.
 EmittedRay SampleEmittedRay(const Scene& scene, const EmitterRef& e, Vec3 center, float radius, Rng& rng);
+// The same from given sample points: u1 the position (area lights, the disk of distant and
+// infinite lights) or the direction (point lights, the infinite light's), u2 the area light's
+// direction or the infinite light's disk, side a two-sided area light's side (< 0.5: the back).
+struct EmissionSample {
+  Vec2 u1, u2;
+  float side = 1;
+};
+EmittedRay SampleEmittedRay(const Scene& scene, const EmitterRef& e, Vec3 center, float radius,
+                            const EmissionSample& u);
 
 // Picks emitters ∝ the luminance of their power (particle paths start so).
 class PowerPicker {

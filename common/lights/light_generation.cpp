@@ -25,13 +25,27 @@ float ExitDistance(const Ray& ray, Vec3 center, float radius) {
   return disc > 0 ? std::max(0.f, -b + std::sqrt(disc)) : 0.f;
 }
 
+// Dimension `dim` (< kHaltonDims) of Halton point `index` (radical inverses in bases 2, 3, 5, 7,
+// 11, 13), shifted by `shift` modulo 1.
+constexpr int kHaltonDims = 6;
+float ShiftedHalton(uint64_t index, int dim, float shift) {
+  static constexpr uint32_t kBases[kHaltonDims] = {2, 3, 5, 7, 11, 13};
+  const uint32_t base = kBases[dim];
+  double inv = 1.0 / base, f = inv, v = 0;
+  for (uint64_t i = index; i > 0; i /= base, f *= inv) v += double(i % base) * f;
+  const float u = float(v) + shift;
+  return std::min(u >= 1.f ? u - 1.f : u, 0x1.fffffep-1f);
+}
+
 // Traces one particle path and appends its surface VPLs (power not yet divided by #paths).
 // Returns the lights it made towards the budget: a VRL counts once, however many pieces it has.
+// `emission`: the emitted ray's sample points (quasi-random paths), or null to draw them from rng.
 size_t TraceParticlePath(const Scene& scene, const EmitterRef& e, float p_select, Vec3 center,
-                         float radius, int max_depth, MediumLights medium_lights, int vrl_pieces, Rng& rng,
-                         std::vector<VirtualLight>* out) {
+                         float radius, int max_depth, MediumLights medium_lights, int vrl_pieces,
+                         const EmissionSample* emission, Rng& rng, std::vector<VirtualLight>* out) {
   size_t made = 0;
-  EmittedRay em = SampleEmittedRay(scene, e, center, radius, rng);
+  EmittedRay em = emission ? SampleEmittedRay(scene, e, center, radius, *emission)
+                           : SampleEmittedRay(scene, e, center, radius, rng);
   if (!em.valid) return made;
   RGB beta = em.beta / p_select;
   const float beta0 = std::max(beta.Max(), 1e-30f);
@@ -273,6 +287,12 @@ LightSet GenerateLights(const Scene& scene, const LightGenerationOptions& opt) {
   const PowerPicker picker(emitters);
   if (picker.empty()) return set;
 
+  // Cranley–Patterson shifts of the quasi-random paths' Halton points, one per dimension.
+  float halton_shift[kHaltonDims];
+  for (int d = 0; d < kHaltonDims; ++d) {
+    Rng shift_rng(HashSeed({opt.seed, uint64_t(RngStream::kParticlePath), ~uint64_t(0), uint64_t(d)}));
+    halton_shift[d] = shift_rng.Uniform();
+  }
   const size_t batch = 4096;
   // Give up if paths keep escaping: a scene that never bounces light yields no VPLs.
   const size_t max_paths = std::max<size_t>(indirect_budget * 64, 1 << 20);
@@ -286,9 +306,23 @@ LightSet GenerateLights(const Scene& scene, const LightGenerationOptions& opt) {
       uint64_t index = paths + k;
       Rng rng(HashSeed({opt.seed, uint64_t(RngStream::kParticlePath), index}));
       float p_select = 0;
+      if (opt.quasi_random_paths) {
+        // The path's first six dimensions (the emitter, the emitted ray's two points, a two-sided
+        // emitter's side: a side drawn at random would thin the points at random) from a
+        // randomly shifted Halton point (Keller 1997 drew instant radiosity's particles from
+        // Halton points): the paths start evenly over the emitters' power, positions and
+        // directions, and a light set's total varies less from seed to seed.
+        float u[kHaltonDims];
+        for (int d = 0; d < kHaltonDims; ++d) u[d] = ShiftedHalton(index + 1, d, halton_shift[d]);
+        const EmissionSample emission{{u[1], u[2]}, {u[3], u[4]}, u[5]};
+        const size_t ei = picker.Pick(u[0], &p_select);
+        per_path_made[k] = TraceParticlePath(scene, emitters[ei], p_select, center, radius, opt.max_depth,
+                                             opt.medium_lights, opt.vrl_pieces, &emission, rng, &per_path[k]);
+        return;
+      }
       const size_t ei = picker.Pick(rng.Uniform(), &p_select);
       per_path_made[k] = TraceParticlePath(scene, emitters[ei], p_select, center, radius, opt.max_depth,
-                                           opt.medium_lights, opt.vrl_pieces, rng, &per_path[k]);
+                                           opt.medium_lights, opt.vrl_pieces, nullptr, rng, &per_path[k]);
     });
     // Consume whole paths in index order so the result is independent of scheduling.
     for (size_t k = 0; k < batch && produced < indirect_budget; ++k) {

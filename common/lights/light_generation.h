@@ -33,6 +33,10 @@ struct LightGenerationOptions {
   // VRLs are cut into up to this many pieces of equal in-scattering weight, each a column
   // (light_generation.cpp, AppendVrlPieces); a VRL counts once towards target_lights.
   int vrl_pieces = 1;
+  // Particle paths start from quasi-random points (light_generation.cpp): the emitter, the
+  // emitted ray's position and direction and a two-sided emitter's side from a randomly shifted
+  // Halton sequence (--param light_paths=halton).
+  bool quasi_random_paths = false;
 };
 
 // Deterministic for a given seed whatever the thread count: every path and every emitter sample

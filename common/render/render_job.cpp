@@ -208,6 +208,7 @@ Plan BuildPlanWith(const std::function<const SceneDescription&()>& scene_desc, c
   lopt.seed = settings.seed;
   lopt.medium_lights = media_rows ? options.media_lights : MediumLights::kNone;
   lopt.vrl_pieces = options.vrl_pieces;
+  lopt.quasi_random_paths = options.quasi_random_paths;
   *plan.lights = GenerateLights(scene, lopt);
   plan.light_options = lopt;
   timer.End("lights");

@@ -52,6 +52,12 @@ RenderOptions ReadRenderOptions(const OptionMap& params, uint64_t seed) {
   if (media_lights != "vrl" && media_lights != "vpl")
     throw OptionError("--param media_lights=" + media_lights + ": expected vrl or vpl");
   o.media_lights = media_lights == "vrl" ? MediumLights::kVRL : MediumLights::kVPL;
+  // Particle paths from independent random points (the default) or quasi-random ones
+  // (docs/methods/media-elements.md, "Quasi-random light paths": not yet shown to win).
+  const std::string light_paths = params.GetString("light_paths", "random");
+  if (light_paths != "random" && light_paths != "halton")
+    throw OptionError("--param light_paths=" + light_paths + ": expected random or halton");
+  o.quasi_random_paths = light_paths == "halton";
   // VRL columns: pieces of equal in-scattering weight per VRL (light_generation.h).
   o.vrl_pieces = int(params.GetInt("vrl_pieces", 4, 1, 1024));
   const std::optional<long long> camera_paths = params.GetOptionalInt(

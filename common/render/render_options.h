@@ -29,6 +29,7 @@ struct RenderOptions {
   float direct_fraction = 0;
   MediumLights media_lights = MediumLights::kVRL;
   int vrl_pieces = 1;
+  bool quasi_random_paths = false;  // light_paths=halton (LightGenerationOptions::quasi_random_paths)
   // Receivers: camera-side paths per pixel (ReceiverOptions::camera_paths; absent: what the
   // scene calls for) and the split points per eye ray in a medium (ReceiverOptions::segments_per_ray).
   std::optional<int> camera_paths;
