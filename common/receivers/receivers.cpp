@@ -961,7 +961,13 @@ ReceiverSet GenerateReceivers(const Scene& scene, const FilterSampler& filter,
       if (const int paths = camera_side ? camera_side->paths(x, y, opt.camera_paths) : 0; paths > 0) {
         ++st.camera_active_pixels;
         const std::span<CameraSample> pixel_samples(set.samples.data() + size_t(pixel) * spp, size_t(spp));
-        AddCameraPaths(scene, filter, camera_only, paths, coverage, x, y, scramble0, scramble1, rng, pixel_samples,
+        // A pixel's camera-side paths share a budget of single-scattering samples, at least
+        // media_direct each: a medium under a distant light gets 64 paths of 8 (the pilot marks
+        // where its texture and self-shadowing vary), a volumetric caustic's 256 paths keep 2.
+        CameraPathOptions pixel_paths = camera_only;
+        if (pixel_paths.media_samples > 0)
+          pixel_paths.media_samples = std::max(pixel_paths.media_samples, kCameraMediaPixelSamples / paths);
+        AddCameraPaths(scene, filter, pixel_paths, paths, coverage, x, y, scramble0, scramble1, rng, pixel_samples,
                        &st);
       }
     }

@@ -130,6 +130,9 @@ inline constexpr int kDefaultCoverage = 16;
 inline constexpr int kDefaultCameraPaths = 256;
 // ... and for a scene whose only camera-side light is the emitters' single scattering in media.
 inline constexpr int kDefaultMediaCameraPaths = 64;
+// Single-scattering samples the camera-side paths of an active pixel share (at least
+// media_direct per path): docs/methods/media-elements.md, "Quasi-random light paths".
+inline constexpr int kCameraMediaPixelSamples = 512;
 inline constexpr int kCameraPilotPaths = 4;
 // An emissive shape whose image fits in this many pixels across activates its pixels without the
 // pilot (receivers.cpp).
