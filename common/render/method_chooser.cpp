@@ -6,8 +6,8 @@
 // time (docs/methods/media-elements.md, "The defaults against path"): with a caustic path (a
 // specular surface and indirect light: a volumetric caustic, which the path tracer's next-event
 // estimation cannot reach through glass) by `adaptive-completion`, whose light paths carry it;
-// else by `path` (on the cloud adaptive-completion is behind it at equal time at 128² and level
-// at 256², docs/media-vs-path.md: the near lights' cost). Brute force, which the 2% target would
+// else by `path` (on the cloud adaptive-completion is behind it at equal time at 128² and ahead
+// at 256², docs/media-vs-path.md: the near lights' cost at the smaller size). Brute force, which the 2% target would
 // pick, takes hours at a scene's own resolution. With a target, a scene with media chooses among
 // the methods measured on the media scenes (docs/media-methods), else brute force, exact; a
 // surface scene among those measured on cornell-box (docs/surface-methods), else brute force.
