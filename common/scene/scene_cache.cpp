@@ -31,7 +31,9 @@ SceneDescription RebaseScene(const SceneDescription& desc, const std::string& fr
 }
 
 SceneCache& SceneCache::Process() {
-  static SceneCache cache;
+  // Two: the coordinator plans two jobs at once by default (--max-active-jobs), a worker runs
+  // one job's tasks at a time and may be handed the next job's first.
+  static SceneCache cache(2);
   return cache;
 }
 

@@ -3,7 +3,9 @@
 // passes a progressive job runs. Entries are keyed by the scene's content (the farm's manifest:
 // every file's relative path and SHA-256, SceneManifest::ContentKey), so a description parsed
 // from one directory serves the same files materialized in another: it is handed out rebased
-// there (base_dir, root_file and files under the new directory). Thread-safe.
+// there (base_dir, root_file and files under the new directory). It holds at most `capacity`
+// descriptions (the least recently used goes first): a process keeps that many scenes' parsed
+// text (inline meshes included) beyond their jobs. Thread-safe.
 #pragma once
 
 #include <cstdint>
