@@ -121,11 +121,7 @@ void AttachMatrix(const RenderSettings& settings, Plan* plan) {
   plan->matrix = std::make_unique<LightingMatrix>(*plan->scene, *plan->receivers, *plan->lights, plan->matrix_options);
 }
 
-}  // namespace
-
-namespace {
-
-// BuildPlan's steps; `scene` gives the scene description once the settings are checked.
+// BuildPlan's steps; `scene_desc` gives the scene description once the settings are checked.
 Plan BuildPlanWith(const std::function<const SceneDescription&()>& scene_desc, const RenderSettings& settings,
                    PhaseTimes* times) {
   PhaseTimer timer(times);
