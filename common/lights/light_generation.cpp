@@ -306,6 +306,8 @@ LightSet GenerateLights(const Scene& scene, const LightGenerationOptions& opt) {
       uint64_t index = paths + k;
       Rng rng(HashSeed({opt.seed, uint64_t(RngStream::kParticlePath), index}));
       float p_select = 0;
+      float u_pick;
+      EmissionSample emission;
       if (opt.quasi_random_paths) {
         // The path's first six dimensions (the emitter, the emitted ray's two points, a two-sided
         // emitter's side: a side drawn at random would thin the points at random) from a
@@ -314,15 +316,15 @@ LightSet GenerateLights(const Scene& scene, const LightGenerationOptions& opt) {
         // directions, and a light set's total varies less from seed to seed.
         float u[kHaltonDims];
         for (int d = 0; d < kHaltonDims; ++d) u[d] = ShiftedHalton(index + 1, d, halton_shift[d]);
-        const EmissionSample emission{{u[1], u[2]}, {u[3], u[4]}, u[5]};
-        const size_t ei = picker.Pick(u[0], &p_select);
-        per_path_made[k] = TraceParticlePath(scene, emitters[ei], p_select, center, radius, opt.max_depth,
-                                             opt.medium_lights, opt.vrl_pieces, &emission, rng, &per_path[k]);
-        return;
+        u_pick = u[0];
+        emission = {{u[1], u[2]}, {u[3], u[4]}, u[5]};
+      } else {
+        u_pick = rng.Uniform();
       }
-      const size_t ei = picker.Pick(rng.Uniform(), &p_select);
+      const size_t ei = picker.Pick(u_pick, &p_select);
       per_path_made[k] = TraceParticlePath(scene, emitters[ei], p_select, center, radius, opt.max_depth,
-                                           opt.medium_lights, opt.vrl_pieces, nullptr, rng, &per_path[k]);
+                                           opt.medium_lights, opt.vrl_pieces,
+                                           opt.quasi_random_paths ? &emission : nullptr, rng, &per_path[k]);
     });
     // Consume whole paths in index order so the result is independent of scheduling.
     for (size_t k = 0; k < batch && produced < indirect_budget; ++k) {
