@@ -357,24 +357,16 @@ class CameraSideActivity {
     MarkSmallEmitters(scene);
     MarkSpecularImages(scene, opt);
     GrantMarkedPaths(opt.camera_paths);
+    ShareActivePaths(opt.camera_paths);
   }
 
-  // Camera paths for pixel (x, y), `base` = ReceiverOptions::camera_paths, 0 for none: where a
-  // small emitter's image (seen directly or through delta interactions) marked the pixel, enough
-  // for about kCameraTargetHits of its paths to find the light, at least `base`; where the
-  // pilot's values over the pixel and its 8 neighbours differ by more than 10% (across pixels,
-  // so the edge between a light and its background is found even where each pixel's own paths
-  // agree), `base`.
-  int paths(int x, int y, int base) const {
-    const uint32_t marked = min_paths_[size_t(y) * width_ + x];
-    if (marked) return std::max(base, int(marked));
-    float lo = kInfinity, hi = -kInfinity;
-    for (int yy = std::max(0, y - 1); yy <= std::min(height_ - 1, y + 1); ++yy)
-      for (int xx = std::max(0, x - 1); xx <= std::min(width_ - 1, x + 1); ++xx) {
-        lo = std::min(lo, lo_[size_t(yy) * width_ + xx]);
-        hi = std::max(hi, hi_[size_t(yy) * width_ + xx]);
-      }
-    return lo < 0.f || hi > 1.1f * lo ? base : 0;
+  // Camera paths for pixel (x, y): where a small emitter's image (seen directly or through delta
+  // interactions) marked the pixel, enough for about kCameraTargetHits of its paths to find the
+  // light (GrantMarkedPaths); where the pilot saw the camera-side light vary, its share of the
+  // active pixels' paths (ShareActivePaths); at least the larger of the two. 0: none.
+  int paths(int x, int y) const {
+    const size_t i = size_t(y) * width_ + x;
+    return int(std::max(min_paths_[i], active_paths_[i]));
   }
 
  private:
@@ -412,6 +404,50 @@ class CameraSideActivity {
         float& h = hit_rate_[size_t(y) * width_ + x];
         h = std::min(h, float(std::max(hit_rate, 1e-12)));
       }
+  }
+
+  // A pixel is active when the pilot's values over it and its 8 neighbours differ by more than
+  // 10% (across pixels, so the edge between a light and its background is found even where each
+  // pixel's own paths agree). The active pixels share `base` paths each: a quarter of them evenly,
+  // the rest in proportion to the spread of those values (max − min luminance), the pilot's
+  // measure of the camera-side light's standard deviation there. Spreading n paths as n_p ∝ σ_p
+  // minimises Σ σ_p² / n_p, the camera side's squared error summed over the image: a small
+  // light's reflection in a smooth plate (σ in the hundreds) gets thousands of paths, a dim
+  // textured wall a few dozen. A non-finite pilot value makes the pixel active with the mean share.
+  void ShareActivePaths(int base) {
+    active_paths_.assign(lo_.size(), 0);
+    if (base <= 0) return;
+    std::vector<float> spread(lo_.size(), -1.f);  // -1: inactive; kInfinity: non-finite pilot
+    double total = 0;
+    size_t active = 0, finite = 0;
+    for (int y = 0; y < height_; ++y)
+      for (int x = 0; x < width_; ++x) {
+        float lo = kInfinity, hi = -kInfinity;
+        for (int yy = std::max(0, y - 1); yy <= std::min(height_ - 1, y + 1); ++yy)
+          for (int xx = std::max(0, x - 1); xx <= std::min(width_ - 1, x + 1); ++xx) {
+            lo = std::min(lo, lo_[size_t(yy) * width_ + xx]);
+            hi = std::max(hi, hi_[size_t(yy) * width_ + xx]);
+          }
+        if (!(lo < 0.f || hi > 1.1f * lo)) continue;
+        ++active;
+        float& s = spread[size_t(y) * width_ + x];
+        s = lo < 0.f ? kInfinity : hi - lo;
+        if (lo >= 0.f) {
+          total += double(s);
+          ++finite;
+        }
+      }
+    if (active == 0) return;
+    const double mean = finite > 0 ? total / double(finite) : 1.0;
+    total += mean * double(active - finite);
+    const double even = double(base) * kEvenActiveShare;
+    const double rest = (double(base) - even) * double(active);
+    for (size_t i = 0; i < spread.size(); ++i) {
+      if (spread[i] < 0.f) continue;
+      const double s = spread[i] == kInfinity ? mean : double(spread[i]);
+      const double share = total > 0 ? s / total : 1.0 / double(active);
+      active_paths_[i] = uint32_t(std::clamp(std::llround(even + rest * share), 1LL, (long long)kMaxCameraPaths));
+    }
   }
 
   // Each marked pixel asks for kCameraTargetHits / hit rate paths, at least `base`, at most
@@ -647,6 +683,7 @@ class CameraSideActivity {
   std::vector<float> lo_, hi_;
   std::vector<float> hit_rate_;      // of the rarest small light a pixel is marked for; ∞: none
   std::vector<uint32_t> min_paths_;  // camera paths granted to a marked pixel; 0: not marked
+  std::vector<uint32_t> active_paths_;  // an active pixel's share (ShareActivePaths); 0: inactive
   std::vector<EmitterBound> emitters_;
 };
 
@@ -958,7 +995,7 @@ ReceiverSet GenerateReceivers(const Scene& scene, const FilterSampler& filter,
         for (ShadingPoint& point : end.points) point.sample = uint32_t(index);
         points[index] = std::move(end.points);
       }
-      if (const int paths = camera_side ? camera_side->paths(x, y, opt.camera_paths) : 0; paths > 0) {
+      if (const int paths = camera_side ? camera_side->paths(x, y) : 0; paths > 0) {
         ++st.camera_active_pixels;
         const std::span<CameraSample> pixel_samples(set.samples.data() + size_t(pixel) * spp, size_t(spp));
         // A pixel's camera-side paths share a budget of single-scattering samples, at least

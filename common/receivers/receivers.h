@@ -93,7 +93,8 @@ struct ReceiverOptions {
   // itself (emission seen directly or through delta and sharp lobes, next-event estimation at
   // sharp vertices) and end where a receiver would start. A pilot of kCameraPilotPaths paths per
   // pixel, on its own random stream and never part of the image, marks the pixels where that
-  // light varies: every pixel within one of a marked pixel gets `camera_paths` more paths. The
+  // light varies: the pixels within one of a marked pixel share `camera_paths` more paths each,
+  // a quarter evenly and the rest in proportion to how much the pilot saw it vary there. The
   // image of every small emitter (kSmallEmitterPixels), seen directly or through delta
   // interactions (found by probing each pixel's delta chains), marks its pixels too, with paths
   // for about kCameraTargetHits hits (at least `camera_paths`). The
@@ -134,6 +135,9 @@ inline constexpr int kDefaultMediaCameraPaths = 64;
 // media_direct per path): docs/methods/media-elements.md, "Quasi-random light paths".
 inline constexpr int kCameraMediaPixelSamples = 512;
 inline constexpr int kCameraPilotPaths = 4;
+// The active pixels share camera_paths paths each (receivers.cpp, ShareActivePaths): this share
+// of them evenly, the rest in proportion to the pilot's spread over each pixel's neighbourhood.
+inline constexpr double kEvenActiveShare = 0.25;
 // An emissive shape whose image fits in this many pixels across activates its pixels without the
 // pilot (receivers.cpp).
 inline constexpr float kSmallEmitterPixels = 4.f;

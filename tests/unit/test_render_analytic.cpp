@@ -261,7 +261,9 @@ TEST(CameraSideSupersampling, ALightsEdgePixelsConvergeToTheirCoverage) {
   const uint64_t active = on.stats["receivers"]["camera_active_pixels"];
   EXPECT_GT(active, size_t(4 * res / 2));
   EXPECT_LT(active, size_t(res * res / 2));
-  EXPECT_EQ(on.stats["receivers"]["camera_paths"], active * 2048);
+  // They share 2048 paths each (rounded per pixel).
+  const double shared = on.stats["receivers"]["camera_paths"].get<double>();
+  EXPECT_NEAR(shared, double(active) * 2048, double(active));
   EXPECT_EQ(on.stats["receivers"]["camera_pilot_paths"], size_t(res * res * kCameraPilotPaths));
 
   // Off, the edge pixels are 0 or L: the option is what brought them to their coverage.
@@ -273,6 +275,61 @@ TEST(CameraSideSupersampling, ALightsEdgePixelsConvergeToTheirCoverage) {
   EXPECT_EQ(off.stats["receivers"]["camera_pilot_paths"], 0);
   // Same receivers either way: the gathered part (black here) and the image inside the rhombus.
   EXPECT_EQ(on.image.at(res / 2, res / 2), off.image.at(res / 2, res / 2));
+}
+
+// The active pixels share their paths by the pilot's spread (ShareActivePaths): the rhombus's two
+// halves emit 200 and 2, so the bright half's edge pixels vary 100× more and get most of the
+// paths. Measured in units of each half's L, its edges are then closer to their coverage than the
+// dim half's; an even share would make the two alike (same geometry, same path counts).
+TEST(CameraSideSupersampling, PathsGoWhereThePilotSawTheLightVaryMost) {
+  TempDir dir;
+  const int res = 24;
+  const std::string scene =
+      "Film \"rgb\" \"integer xresolution\" [24] \"integer yresolution\" [24]\n"
+      "PixelFilter \"box\"\nIntegrator \"path\" \"integer maxdepth\" [1]\n"
+      "LookAt 0 0 5  0 0 0  0 1 0\nCamera \"orthographic\" \"float screenwindow\" [-1 1 -1 1]\n"
+      "WorldBegin\n"
+      "AttributeBegin\n  AreaLightSource \"diffuse\" \"rgb L\" [200 200 200] \"bool twosided\" true\n"
+      "  Material \"diffuse\" \"rgb reflectance\" [0 0 0]\n"
+      "  Shape \"trianglemesh\" \"point3 P\" [0.8 0 0.5  0 0.6 0.5  -0.8 0 0.5] \"integer indices\" [0 1 2]\n"
+      "AttributeEnd\n"
+      "AttributeBegin\n  AreaLightSource \"diffuse\" \"rgb L\" [2 2 2] \"bool twosided\" true\n"
+      "  Material \"diffuse\" \"rgb reflectance\" [0 0 0]\n"
+      "  Shape \"trianglemesh\" \"point3 P\" [0.8 0 0.5  -0.8 0 0.5  0 -0.6 0.5] \"integer indices\" [0 1 2]\n"
+      "AttributeEnd\n";
+  RenderSettings s;
+  s.method = "brute";
+  s.lights = 50;
+  s.params = {"camera_paths=256", "coverage=1"};
+  const std::string path = dir.Write("halves.pbrt", scene);
+  double bright_sq = 0, dim_sq = 0;
+  size_t bright_n = 0, dim_n = 0;
+  for (const uint64_t seed : {1, 2}) {
+    s.seed = seed;
+    const RenderOutput out = RenderScene(path, s);
+    // Which image rows hold the bright half (y > 0): the image's orientation is the camera's.
+    const bool bright_on_top = out.image.at(res / 2, res / 4).g > out.image.at(res / 2, 3 * res / 4).g;
+    for (int py = 0; py < res; ++py)
+      for (int px = 0; px < res; ++px) {
+        // Whole pixels on one side of y = 0, not touching it (the seam between the halves).
+        const int row = bright_on_top ? res - 1 - py : py;  // row 0 at y = -1
+        const double x0 = -1 + 2.0 * px / res, y0 = -1 + 2.0 * row / res;
+        if (y0 < 2.0 / res && y0 + 2.0 / res > -2.0 / res) continue;
+        const double coverage = RhombusCoverage(x0, y0, x0 + 2.0 / res, y0 + 2.0 / res);
+        if (coverage <= 0 || coverage >= 1) continue;  // not on the rhombus's edge
+        const bool bright = y0 > 0;
+        const double L = bright ? 200 : 2;
+        const double err = double(out.image.at(px, py).g) / L - coverage;
+        (bright ? bright_sq : dim_sq) += err * err;
+        ++(bright ? bright_n : dim_n);
+      }
+  }
+  ASSERT_GT(bright_n, 20u);
+  ASSERT_GT(dim_n, 20u);
+  const double bright_rms = std::sqrt(bright_sq / double(bright_n)), dim_rms = std::sqrt(dim_sq / double(dim_n));
+  // Paths ∝ spread: the bright edges get ~7× the dim edges' paths here, √7 ≈ 2.6× less error.
+  EXPECT_LT(bright_rms, 0.6 * dim_rms) << "bright " << bright_rms << " dim " << dim_rms;
+  EXPECT_GT(dim_rms, 0.0);
 }
 
 // A light far smaller than a pixel: a 0.02 × 0.02 square inside one pixel of 24² over [-1, 1]²
