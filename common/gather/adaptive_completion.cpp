@@ -358,20 +358,27 @@ class SliceSolver {
       sampled_near_ = std::move(lights);  // after the traversal, on the final U (see Run)
       return;
     }
-    // In groups of columns so that the entry lists stay small
-    const size_t group = std::max<size_t>(1, (1u << 16) / std::max<uint32_t>(1, m_));
+    // In groups of columns so that the entry lists stay small, each group in tiles of
+    // kNearTile rows × kNearTile lights: an evaluation chunk then reads the media tracks of a few
+    // rows and lights many times (each of a row's coverage pieces, and each VRL's track), instead
+    // of those of every row of the slice once.
+    constexpr uint32_t kNearTile = 32;
+    const size_t group = std::max<size_t>(kNearTile, (1u << 16) / std::max<uint32_t>(1, m_));
     for (size_t first = 0; first < lights.size(); first += group) {
       const size_t last = std::min(lights.size(), first + group);
-      std::vector<uint32_t> rows, cols;
-      for (size_t j = first; j < last; ++j)
-        for (uint32_t r = 0; r < m_; ++r) {
-          rows.push_back(task_.rows[r]);
-          cols.push_back(lights[j]);
-        }
+      std::vector<uint32_t> rows, cols, local;
+      for (uint32_t r0 = 0; r0 < m_; r0 += kNearTile)
+        for (size_t j0 = first; j0 < last; j0 += kNearTile)
+          for (size_t j = j0; j < std::min(last, j0 + kNearTile); ++j)
+            for (uint32_t r = r0; r < std::min(m_, r0 + kNearTile); ++r) {
+              rows.push_back(task_.rows[r]);
+              cols.push_back(lights[j]);
+              local.push_back(r);
+            }
       std::vector<RGB> values;
       EvaluateInChunks(matrix_, rows, cols, &values, &out_->counters);
       for (size_t k = 0; k < values.size(); ++k) {
-        const Eigen::Index r = Eigen::Index(k % m_);
+        const Eigen::Index r = Eigen::Index(local[k]);
         for (int c = 0; c < 3; ++c)
           if (std::isfinite(values[k][c])) near_sums_(3 * r + c) += double(values[k][c]);
       }
