@@ -64,23 +64,38 @@ RGBAccum LightingMatrix::CausticRadiance(uint32_t row, MatrixCounters* counters)
     // flux the event scattered (σ_s is in it), so σ_s is not applied again.
     const size_t s = row - rows_.size();
     if (s >= receivers_.segments.size() || map->volume().empty()) return sum;
-    const EyeSegment& seg = receivers_.segments[s];
-    const int budget = max_depth_ - int(seg.depth);
-    if (budget <= 0 || seg.medium < 0) return sum;
+    const EyeSegment& eye_row = receivers_.segments[s];
+    const int budget = max_depth_ - int(eye_row.depth);
+    if (budget <= 0) return sum;
+    // A row with coverage pieces: each piece's estimate over their number (their throughputs
+    // hold pieces / K), so the row gets the mean over its film positions.
+    const std::span<const EyeSegment> pieces =
+        eye_row.pieces > 0 ? std::span<const EyeSegment>(receivers_.segment_pieces).subspan(eye_row.first_piece, eye_row.pieces)
+                           : std::span<const EyeSegment>(&eye_row, 1);
     thread_local std::vector<CausticPhotonMap::SegmentHit> hits;
-    map->NearSegment(seg.o, seg.d, seg.length, &hits);
-    if (hits.empty()) return sum;
-    const Medium& med = scene_.media()[seg.medium];
     Rng rng(HashSeed({seed_, uint64_t(RngStream::kCausticPhoton), uint64_t(row)}));
-    for (const CausticPhotonMap::SegmentHit& h : hits) {
-      const CausticPhoton& ph = map->volume()[h.photon];
-      if (ph.depth > budget || ph.medium != seg.medium) continue;
-      const RGB tr = med.Transmittance({seg.o, seg.d, h.t}, rng);
-      raw.Add(ph.power * tr * HenyeyGreenstein(Dot(ph.dir, -seg.d), med.g()));
-      ++counters->caustic_photons_used;
-    }
     const float r = map->volume_radius();
-    scale = seg.throughput / (kPi * r * r);
+    RGBAccum beams;
+    for (const EyeSegment& seg : pieces) {
+      if (seg.medium < 0) continue;
+      map->NearSegment(seg.o, seg.d, seg.length, &hits);
+      if (hits.empty()) continue;
+      const Medium& med = scene_.media()[seg.medium];
+      RGBAccum piece;
+      for (const CausticPhotonMap::SegmentHit& h : hits) {
+        const CausticPhoton& ph = map->volume()[h.photon];
+        if (ph.depth > budget || ph.medium != seg.medium) continue;
+        const RGB tr = med.Transmittance({seg.o, seg.d, h.t}, rng);
+        piece.Add(ph.power * tr * HenyeyGreenstein(Dot(ph.dir, -seg.d), med.g()));
+        ++counters->caustic_photons_used;
+      }
+      const RGB w = seg.throughput / (kPi * r * r * float(pieces.size()));
+      beams.r += piece.r * double(w.r);
+      beams.g += piece.g * double(w.g);
+      beams.b += piece.b * double(w.b);
+    }
+    raw = beams;
+    scale = RGB(1.f);
   }
   sum.r = raw.r * double(scale.r);
   sum.g = raw.g * double(scale.g);

@@ -122,20 +122,29 @@ RGBAccum LightingMatrix::SegmentCompensation(uint32_t row, MatrixCounters* count
   RGBAccum sum;
   const uint32_t si = row - uint32_t(rows_.size());
   if (si >= receivers_.segments.size()) return sum;
-  const EyeSegment& seg = receivers_.segments[si];
-  const int budget = max_depth_ - int(seg.depth);
-  if (budget <= 0 || seg.medium < 0 || !(seg.length > 0)) return sum;
-  MediumTrack scratch;
-  const MediumTrack& track = SegmentTrack(si, &scratch);
-  if (track.empty()) return sum;
-  const float g = scene_.media()[seg.medium].g();
+  const EyeSegment& eye_row = receivers_.segments[si];
+  const int budget = max_depth_ - int(eye_row.depth);
+  if (budget <= 0) return sum;
   PathCounters pc;
   const int n = compensation_samples_ * kSegmentCompensationFactor;
   const float inv_n = 1.f / float(n);
+  // With coverage, sample s takes piece (first + s) of the row (SegmentRayFor), first from its own
+  // generator so that rows without pieces draw what they drew before.
+  Rng piece_rng(HashSeed({seed_, uint64_t(RngStream::kCompensation), row, ~uint64_t(0)}));
+  const uint32_t first_piece = FirstPieceDraw(eye_row, piece_rng);
+  MediumTrack scratch;
+  SegmentRay piece{};
   for (int s = 0; s < n; ++s) {
+    if (s == 0 || eye_row.pieces > 1) piece = SegmentRayFor(si, first_piece + uint32_t(s), &scratch);
+    const EyeSegment& seg = *piece.seg;
+    const MediumTrack& track = *piece.track;
+    if (seg.medium < 0 || !(seg.length > 0) || track.empty()) continue;
+    const float g = scene_.media()[seg.medium].g();
     Rng rng(HashSeed({seed_, uint64_t(RngStream::kCompensation), row, uint64_t(s)}));
     float pdf_t = 0, pdf_w = 0;
     size_t where = 0;
+    // Stratified over the row's samples: with pieces too, as each sample's piece is uniform
+    // whatever its stratum (the first is random), so every (piece, stratum) pair is as likely.
     const float t = track.Sample((float(s) + rng.Uniform()) * inv_n, &pdf_t, &where);
     if (!(pdf_t > 0)) continue;
     const MediumTrack::Point x = track.At(t, where);

@@ -298,14 +298,23 @@ LightingMatrix::LightingMatrix(const Scene& scene, const ReceiverSet& receivers,
 void LightingMatrix::BuildMediumTracks() {
   const std::vector<Medium>& media = scene_.media();
   auto in_grid = [&](int medium) { return medium >= 0 && size_t(medium) < media.size() && !media[size_t(medium)].homogeneous(); };
-  bool any_segment = false, any_light = false;
+  bool any_segment = false, any_light = false, any_piece = false;
   for (const EyeSegment& s : receivers_.segments) any_segment |= in_grid(s.medium);
+  for (const EyeSegment& s : receivers_.segment_pieces) any_piece |= in_grid(s.medium);
   for (const VirtualLight& L : lights_.lights) any_light |= L.IsRay() && in_grid(L.medium);
   if (any_segment) {
     segment_tracks_.resize(receivers_.segments.size());
     tbb::parallel_for(size_t(0), receivers_.segments.size(), [&](size_t i) {
       const EyeSegment& s = receivers_.segments[i];
-      if (in_grid(s.medium)) segment_tracks_[i] = MediumTrack(media[size_t(s.medium)], {s.o, s.d, s.length});
+      // A row with coverage pieces integrates along them only.
+      if (in_grid(s.medium) && s.pieces == 0) segment_tracks_[i] = MediumTrack(media[size_t(s.medium)], {s.o, s.d, s.length});
+    });
+  }
+  if (any_piece) {
+    piece_tracks_.resize(receivers_.segment_pieces.size());
+    tbb::parallel_for(size_t(0), receivers_.segment_pieces.size(), [&](size_t i) {
+      const EyeSegment& s = receivers_.segment_pieces[i];
+      if (in_grid(s.medium)) piece_tracks_[i] = MediumTrack(media[size_t(s.medium)], {s.o, s.d, s.length});
     });
   }
   if (any_light) {
@@ -315,7 +324,7 @@ void LightingMatrix::BuildMediumTracks() {
       if (L.IsRay() && in_grid(L.medium)) light_tracks_[j] = MediumTrack(media[size_t(L.medium)], {L.p, L.n, L.length});
     });
   }
-  for (const std::vector<MediumTrack>* tracks : {&segment_tracks_, &light_tracks_})
+  for (const std::vector<MediumTrack>* tracks : {&segment_tracks_, &light_tracks_, &piece_tracks_})
     for (const MediumTrack& t : *tracks) {
       medium_tracks_ += t.knots() > 0;
       medium_track_knots_ += t.knots();
@@ -334,6 +343,20 @@ const MediumTrack& LightingMatrix::SegmentTrack(uint32_t si, MediumTrack* scratc
   if (si < segment_tracks_.size() && !scene_.media()[size_t(s.medium)].homogeneous()) return segment_tracks_[si];
   *scratch = MediumTrack(scene_.media()[size_t(s.medium)], {s.o, s.d, s.length});
   return *scratch;
+}
+
+LightingMatrix::SegmentRay LightingMatrix::SegmentRayFor(uint32_t si, uint32_t draw, MediumTrack* scratch) const {
+  const EyeSegment& row = receivers_.segments[si];
+  if (row.pieces == 0) {
+    if (row.medium < 0) return {&row, scratch};  // nothing to integrate: the caller skips it
+    return {&row, &SegmentTrack(si, scratch)};
+  }
+  const size_t pi = size_t(row.first_piece) + draw % row.pieces;
+  const EyeSegment& s = receivers_.segment_pieces[pi];
+  if (s.medium < 0) return {&s, scratch};
+  if (pi < piece_tracks_.size() && !scene_.media()[size_t(s.medium)].homogeneous()) return {&s, &piece_tracks_[pi]};
+  *scratch = MediumTrack(scene_.media()[size_t(s.medium)], {s.o, s.d, s.length});
+  return {&s, scratch};
 }
 
 const MediumTrack& LightingMatrix::LightTrack(uint32_t col, MediumTrack* scratch) const {

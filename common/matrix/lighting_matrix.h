@@ -15,6 +15,7 @@
 #include "common/integrator/path_tracer.h"
 #include "common/receivers/receivers.h"
 #include "common/scene/medium_track.h"
+#include "common/util/rng.h"
 #include "common/scene/scene.h"
 
 namespace lightfarm {
@@ -241,6 +242,19 @@ class LightingMatrix {
   // medium; built into `scratch` (closed forms, no knots) in a homogeneous one.
   const MediumTrack& SegmentTrack(uint32_t segment, MediumTrack* scratch) const;
   const MediumTrack& LightTrack(uint32_t col, MediumTrack* scratch) const;
+  // The ray one sample of an eye-segment row's element integrates along: the segment itself, or
+  // with coverage (EyeSegment::pieces) its piece number `draw` mod pieces, whose throughput
+  // already holds pieces / K. An element draws a random first piece and takes the next one per
+  // sample, so each sample's piece is uniform and the samples spread over the pieces.
+  struct SegmentRay {
+    const EyeSegment* seg;
+    const MediumTrack* track;
+  };
+  SegmentRay SegmentRayFor(uint32_t segment, uint32_t draw, MediumTrack* scratch) const;
+  // The first piece's draw for an element of row `segment` (0, drawing nothing, without coverage).
+  static uint32_t FirstPieceDraw(const EyeSegment& row, Rng& rng) {
+    return row.pieces > 1 ? uint32_t(rng.Uniform() * float(row.pieces)) % row.pieces : 0u;
+  }
   void BuildMediumTracks();
   // The share of an element's samples drawn from the tracks: MatrixOptions::density_fraction when
   // one of its pieces lies in a grid medium, else 0 (in a homogeneous medium σ_s·Tr is smooth and
@@ -299,7 +313,7 @@ class LightingMatrix {
   mutable std::vector<RTCRay>* recorded_rays_ = nullptr;
   // Tracks of eye segments and VRLs in grid media (empty where the medium is homogeneous),
   // tabulated once here: every element on the row or column reuses them.
-  std::vector<MediumTrack> segment_tracks_, light_tracks_;
+  std::vector<MediumTrack> segment_tracks_, light_tracks_, piece_tracks_;
   size_t medium_tracks_ = 0, medium_track_knots_ = 0;
   int segment_samples_ = 4;
   float density_fraction_ = 0.5f;

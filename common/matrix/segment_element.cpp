@@ -22,19 +22,14 @@
 namespace lightfarm {
 
 RGB LightingMatrix::SegmentElement(uint32_t si, uint32_t col, MatrixCounters* counters) const {
-  const EyeSegment& seg = receivers_.segments[si];
+  const EyeSegment& row = receivers_.segments[si];
   const VirtualLight& L = lights_.lights[col];
   if (L.IsRay()) return VrlSegmentElement(si, col, counters);  // Huo 2016, Eq. 3
   // The emitters' single scattering is the camera side's (ReceiverOptions::media_direct_samples).
   if (!segment_emitter_columns_ &&
       (L.kind == VirtualLightKind::kPoint || L.kind == VirtualLightKind::kDirectional || L.kind == VirtualLightKind::kAreaVPL))
     return RGB(0.f);
-  if (int(L.depth) + int(seg.depth) > max_depth_) return RGB(0.f);
-  if (seg.medium < 0 || !(seg.length > 0)) return RGB(0.f);
-  MediumTrack scratch;
-  const MediumTrack& track = SegmentTrack(si, &scratch);
-  if (track.empty()) return RGB(0.f);
-  const Medium& med = scene_.media()[seg.medium];
+  if (int(L.depth) + int(row.depth) > max_depth_) return RGB(0.f);
   constexpr int kMaxSamples = 64, kRealLightSamples = 16;
   const bool directional = L.IsDirectional();
   // A real light (point, spot, directional) is one column among thousands of virtual ones and
@@ -43,16 +38,26 @@ RGB LightingMatrix::SegmentElement(uint32_t si, uint32_t col, MatrixCounters* co
   // (scenes/cloud, 32², a distant light: rel_l1 0.155 with 4 samples, 0.052 with 32).
   const bool real = L.kind == VirtualLightKind::kPoint || directional;
   const int n = std::clamp(segment_samples_ * (real ? kRealLightSamples : 1), 1, kMaxSamples);
-  const StrategyMix mix(n, directional ? 1.f : DensityFraction(seg.medium, -1));
   Rng rng(HashSeed({uint64_t(RngStream::kMedium), seed_, 1, si, col}));
-  // Equi-angular towards the light's position (point-like lights only).
-  const EquiAngular ea(seg.o, seg.d, seg.length, directional ? seg.o : L.p);
+  // With coverage each sample integrates along one of the row's pieces (vrl_element.cpp).
+  const uint32_t first_piece = FirstPieceDraw(row, rng);
+  MediumTrack scratch;
   alignas(16) std::array<RTCRay, kMaxSamples> rays;
   std::array<RGB, kMaxSamples> values;
   std::array<Vec3, kMaxSamples> origins, dirs;
   std::array<float, kMaxSamples> lengths;
+  std::array<int16_t, kMaxSamples> media;
   size_t nrays = 0;
-  for (int k = 0; k < mix.n; ++k) {
+  SegmentRay piece{};  // the same for every sample without coverage
+  for (int k = 0; k < n; ++k) {
+    if (k == 0 || row.pieces > 1) piece = SegmentRayFor(si, first_piece + uint32_t(k), &scratch);
+    const EyeSegment& seg = *piece.seg;
+    const MediumTrack& track = *piece.track;
+    if (seg.medium < 0 || !(seg.length > 0) || track.empty()) continue;
+    const Medium& med = scene_.media()[seg.medium];
+    const StrategyMix mix(n, directional ? 1.f : DensityFraction(seg.medium, -1));
+    // Equi-angular towards the light's position (point-like lights only).
+    const EquiAngular ea(seg.o, seg.d, seg.length, directional ? seg.o : L.p);
     float u, t, pdf_density;
     size_t where;
     if (mix.First(k, rng, &u)) {
@@ -104,6 +109,7 @@ RGB LightingMatrix::SegmentElement(uint32_t si, uint32_t col, MatrixCounters* co
     dirs[nrays] = dir / dlen;
     lengths[nrays] = directional ? kInfinity : dlen * tfar;
     values[nrays] = value;
+    media[nrays] = seg.medium;
     ++nrays;
   }
   if (nrays == 0) return RGB(0.f);
@@ -113,7 +119,7 @@ RGB LightingMatrix::SegmentElement(uint32_t si, uint32_t col, MatrixCounters* co
   RGBAccum sum;
   for (size_t r = 0; r < nrays; ++r) {
     if (!(rays[r].tfar >= 0.f)) continue;
-    RGB T = scene_.TransmittanceAlong(origins[r], dirs[r], lengths[r], seg.medium, rng);
+    RGB T = scene_.TransmittanceAlong(origins[r], dirs[r], lengths[r], media[r], rng);
     ++counters->transmittance_evals;
     sum.Add(values[r] * T);
   }

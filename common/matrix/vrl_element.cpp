@@ -152,24 +152,34 @@ RGB LightingMatrix::VrlPointElement(uint32_t ri, uint32_t col, MatrixCounters* c
 }
 
 RGB LightingMatrix::VrlSegmentElement(uint32_t si, uint32_t col, MatrixCounters* counters) const {
-  const EyeSegment& seg = receivers_.segments[si];
+  const EyeSegment& row = receivers_.segments[si];
   const VirtualLight& L = lights_.lights[col];
-  if (int(L.depth) + int(seg.depth) > max_depth_) return RGB(0.f);
-  if (seg.medium < 0 || !(seg.length > 0) || L.medium < 0 || !(L.length > 0)) return RGB(0.f);
+  if (int(L.depth) + int(row.depth) > max_depth_) return RGB(0.f);
+  if (L.medium < 0 || !(L.length > 0)) return RGB(0.f);
   MediumTrack eye_scratch, light_scratch;
-  const MediumTrack& eye = SegmentTrack(si, &eye_scratch);
   const MediumTrack& light = LightTrack(col, &light_scratch);
-  if (eye.empty() || light.empty()) return RGB(0.f);
-  const Medium& eye_med = scene_.media()[seg.medium];
-  const StrategyMix mix(std::clamp(segment_samples_, 1, kMaxVrlSamples), DensityFraction(L.medium, seg.medium));
+  if (light.empty()) return RGB(0.f);
   Rng rng(HashSeed({uint64_t(RngStream::kMedium), seed_, 3, si, col}));
-  // The floor on the lines' distance: far below the clamp distance and the segments' scale.
-  const float h_floor = 1e-4f * std::max({L.length, seg.length, clamp_distance_});
-  const InverseDistance vrl_sampler(L.p, L.n, L.length, seg.o, seg.d, h_floor);
+  // With coverage each sample integrates along one of the row's pieces (SegmentRayFor). Its
+  // piece is uniform whatever its strategy and stratum (the first piece is random), and the
+  // piece's probability cancels in the balance heuristic's weight, so the element is unbiased
+  // for the mean over the pieces with the strategies' counts and strata as without coverage.
+  const uint32_t first_piece = FirstPieceDraw(row, rng);
+  const int n = std::clamp(segment_samples_, 1, kMaxVrlSamples);
   alignas(16) std::array<RTCRay, kMaxVrlSamples> rays;
   std::array<PendingSample, kMaxVrlSamples> pending;
   size_t nrays = 0;
-  for (int k = 0; k < mix.n; ++k) {
+  SegmentRay ray{};  // the same for every sample without coverage
+  for (int k = 0; k < n; ++k) {
+    if (k == 0 || row.pieces > 1) ray = SegmentRayFor(si, first_piece + uint32_t(k), &eye_scratch);
+    const EyeSegment& seg = *ray.seg;
+    const MediumTrack& eye = *ray.track;
+    if (seg.medium < 0 || !(seg.length > 0) || eye.empty()) continue;
+    const Medium& eye_med = scene_.media()[seg.medium];
+    const StrategyMix mix(n, DensityFraction(L.medium, seg.medium));
+    // The floor on the lines' distance: far below the clamp distance and the segments' scale.
+    const float h_floor = 1e-4f * std::max({L.length, seg.length, clamp_distance_});
+    const InverseDistance vrl_sampler(L.p, L.n, L.length, seg.o, seg.d, h_floor);
     // Strategy 1: s and t where the VRL and the eye segment scatter. Strategy 2 (Novák 2012):
     // s ∝ 1/(distance to the eye ray's line), then t equi-angular towards y_s.
     float u;

@@ -36,6 +36,9 @@ struct PathEnd {
   size_t transmittance_evals = 0;
   size_t media_direct_samples = 0;
   std::vector<EyeSegment> segments;
+  // Knots of the track of the first medium piece, when segments begin with it (depth 1): what
+  // its coverage pieces will cost (GenerateReceivers, segment coverage).
+  size_t first_segment_knots = 0;
 };
 
 // One emitter sample of next-event estimation for the sharp lobe of the vertex at `hit`
@@ -181,9 +184,12 @@ PathEnd TraceCameraPath(const Scene& scene, const CameraPathOptions& opt, Ray ra
         if (b.depth < max_depth && (opt.segments_per_ray >= 0 || opt.media_lights)) {
           // The scattering vertex on this piece would be the path's depth + 1.
           const MediumTrack track = CameraPieceTrack(med, b.ray, tmax);
-          if (opt.segments_per_ray >= 0)
+          if (opt.segments_per_ray >= 0) {
+            const bool first = end.segments.empty() && b.depth == 0;
             AppendEyeSegments(track, b.medium, b.ray, b.beta, opt.segments_per_ray,
                               uint8_t(std::min(b.depth + 1, 255)), &end.segments);
+            if (first && !end.segments.empty()) end.first_segment_knots = track.knots();
+          }
           if (opt.media_lights && !track.empty()) {
             end.emitted += b.beta * DirectInScattering(scene, *opt.media_lights, track, b.ray, b.medium,
                                                        opt.media_samples, rng);
@@ -844,6 +850,62 @@ void AddCameraPaths(const Scene& scene, const FilterSampler& filter, const Camer
   for (CameraSample& cs : samples) cs.emitted = mean;
 }
 
+// The first medium piece of a camera ray that has anything to scatter, as TraceCameraPath cuts
+// it with segments_per_ray 0 (its first eye segment, at depth 1), reached through interfaces
+// only; none if the ray meets a surface or leaves first. Deterministic.
+std::optional<EyeSegment> FirstEyeSegment(const Scene& scene, Ray ray) {
+  int medium = scene.camera_medium();
+  std::vector<EyeSegment> found_segment;
+  for (int passthrough = 0;;) {
+    SurfaceHit hit;
+    const bool found = scene.Intersect(ray, &hit);
+    if (medium >= 0) {
+      const MediumTrack track = CameraPieceTrack(scene.media()[size_t(medium)], ray, found ? hit.t : kInfinity);
+      AppendEyeSegments(track, medium, ray, RGB(1.f), 0, 1, &found_segment);
+      if (!found_segment.empty()) return found_segment.front();
+    }
+    if (!found) return std::nullopt;
+    const Material& m = scene.materials()[scene.shapes()[hit.shape].material];
+    if (MaterialFlags(m) != 0 || ++passthrough > 64) return std::nullopt;
+    medium = scene.MediumAfter(hit, ray.d, medium);
+    ray.o = OffsetRayOrigin(hit.p, hit.ng, ray.d);
+  }
+}
+
+// Coverage of a receiver sample's first medium piece (ReceiverOptions::segment_coverage): the
+// pieces of its own ray (`own`, the segments its path cut) and of the coverage lattice's other
+// positions become one row. Given the K positions each is the sample's own with probability 1/K
+// (CoverageLattice), and the filter weights are equal (a positive filter), so the row's mean over
+// the K rays is what K samples would give the pixel in expectation. Replaces own's first segment
+// when it is the first piece (depth 1), else puts the row in front; appends the pieces.
+void CoverFirstSegment(const Scene& scene, const FilterSampler& filter, const std::vector<Vec2>& lattice, Vec2 u0,
+                       int x, int y, Rng& rng, std::vector<EyeSegment>* own, std::vector<EyeSegment>* pieces,
+                       ReceiverStats* st) {
+  const bool own_first = !own->empty() && own->front().depth == 1;
+  if (own_first) pieces->push_back(own->front());
+  const auto wrap = [](float v) { return std::min(v >= 1.f ? v - 1.f : v, 0x1.fffffep-1f); };
+  for (size_t j = 1; j < lattice.size(); ++j) {
+    const FilterSample fs = filter.Sample({wrap(u0.x + lattice[j].x), wrap(u0.y + lattice[j].y)});
+    const Ray ray = FilmRay(scene, x, y, fs, rng);
+    ++st->camera_rays;
+    ++st->coverage_paths;
+    if (!IsFinite(ray.o) || !IsFinite(ray.d)) {
+      ++st->nonfinite_rays;
+      continue;
+    }
+    if (std::optional<EyeSegment> seg = FirstEyeSegment(scene, ray)) pieces->push_back(*seg);
+  }
+  if (pieces->empty()) return;
+  const float scale = float(pieces->size()) / float(lattice.size());
+  for (EyeSegment& piece : *pieces) piece.throughput *= scale;
+  EyeSegment row = pieces->front();
+  row.pieces = uint16_t(pieces->size());
+  if (own_first)
+    own->front() = row;
+  else
+    own->insert(own->begin(), row);
+}
+
 }  // namespace
 
 RGB AppendEyeSegments(const Medium& med, int medium, const Ray& ray, float tmax, RGB beta, int h,
@@ -893,7 +955,8 @@ ReceiverSet GenerateReceivers(const Scene& scene, const FilterSampler& filter,
   const int spp = set.spp;
   set.samples.resize(npix * spp);
   std::vector<std::vector<ShadingPoint>> points(npix * spp);
-  std::vector<std::vector<EyeSegment>> segments(npix * spp);
+  std::vector<std::vector<EyeSegment>> segments(npix * spp), pieces(npix * spp);
+  std::vector<size_t> first_knots(npix * spp, 0);
   std::vector<ReceiverStats> row_stats(set.height);
   // Emitter sampling at sharp-lobe vertices, only when the split made a lobe sharp.
   std::unique_ptr<EmitterSampler> sharp_lights;
@@ -988,6 +1051,7 @@ ReceiverSet GenerateReceivers(const Scene& scene, const FilterSampler& filter,
           continue;
         }
         PathEnd end = TraceCameraPath(scene, receiver_paths, ray, rng);
+        first_knots[index] = end.first_segment_knots;
         for (EyeSegment& seg : end.segments) seg.sample = uint32_t(index);
         segments[index] = std::move(end.segments);
         cs.emitted = end.emitted;
@@ -1010,6 +1074,37 @@ ReceiverSet GenerateReceivers(const Scene& scene, const FilterSampler& filter,
     }
   });
 
+  // Coverage of media rows (ReceiverOptions::segment_coverage), after every sample's own path:
+  // the pieces' tracks cost memory in proportion to their knots, so K is lowered to keep about
+  // kSegmentCoverageKnots of them, estimated from the own rays' first pieces (deterministic).
+  if (opt.segment_coverage > 1 && opt.segments_per_ray == 0 && opt.max_depth > 0 && filter.positive()) {
+    size_t knots = 0;
+    for (size_t k : first_knots) knots += k;
+    const size_t by_memory = knots > 0 ? kSegmentCoverageKnots / knots : size_t(kMaxCoverage);
+    const int k = int(std::clamp<size_t>(by_memory, 1, size_t(std::min(opt.segment_coverage, kMaxCoverage))));
+    set.stats.segment_coverage = size_t(k);
+    if (k > 1) {
+      const std::vector<Vec2> segment_lattice = CoverageLattice(k);
+      tbb::parallel_for(0, set.height, [&](int y) {
+        ReceiverStats& st = row_stats[y];
+        for (int x = 0; x < set.width; ++x) {
+          const uint32_t pixel = uint32_t(y * set.width + x);
+          // The sample's own film position, as the first pass drew it.
+          Rng pixel_rng(HashSeed({opt.seed, uint64_t(RngStream::kCameraSample), pixel}));
+          const uint32_t scramble0 = pixel_rng.Next(), scramble1 = pixel_rng.Next();
+          for (int s = 0; s < spp; ++s) {
+            const size_t index = size_t(pixel) * spp + s;
+            Rng rng(HashSeed({opt.seed, uint64_t(RngStream::kSegmentCoverage), pixel, uint64_t(s)}));
+            const Vec2 u{Sobol2DComponent(uint32_t(s), 0, scramble0), Sobol2DComponent(uint32_t(s), 1, scramble1)};
+            CoverFirstSegment(scene, filter, segment_lattice, u, x, y, rng, &segments[index], &pieces[index], &st);
+            for (EyeSegment& seg : segments[index]) seg.sample = uint32_t(index);
+            for (EyeSegment& seg : pieces[index]) seg.sample = uint32_t(index);
+          }
+        }
+      });
+    }
+  }
+
   // Compact the shading points in sample order (deterministic).
   for (size_t i = 0; i < points.size(); ++i) {
     if (points[i].empty()) continue;
@@ -1021,6 +1116,10 @@ ReceiverSet GenerateReceivers(const Scene& scene, const FilterSampler& filter,
     if (segments[i].empty()) continue;
     set.samples[i].first_segment = int32_t(set.segments.size());
     set.samples[i].segment_count = uint32_t(segments[i].size());
+    if (!pieces[i].empty()) {  // the sample's first segment is their row (CoverFirstSegment)
+      segments[i].front().first_piece = uint32_t(set.segment_pieces.size());
+      set.segment_pieces.insert(set.segment_pieces.end(), pieces[i].begin(), pieces[i].end());
+    }
     set.segments.insert(set.segments.end(), segments[i].begin(), segments[i].end());
   }
   for (const ReceiverStats& st : row_stats) {
@@ -1036,6 +1135,7 @@ ReceiverSet GenerateReceivers(const Scene& scene, const FilterSampler& filter,
     set.stats.split_vertices += st.split_vertices;
     set.stats.coverage_paths += st.coverage_paths;
   }
+  set.stats.segment_coverage = std::max<size_t>(set.stats.segment_coverage, 1);
   return set;
 }
 

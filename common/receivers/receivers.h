@@ -36,6 +36,15 @@ struct EyeSegment {
   int16_t medium = -1;  // the medium the segment lies in
   uint8_t depth = 1;    // scattering events on the camera path, the in-scattering included
   uint32_t sample = 0;  // index of the camera sample it belongs to
+  // Coverage of a media row (ReceiverOptions::segment_coverage): the row is the mean, over the
+  // sample's K coverage rays, of each one's first medium piece (a ray without one adds 0). The
+  // `pieces` rays that have one are ReceiverSet::segment_pieces[first_piece, first_piece +
+  // pieces), their throughputs scaled by pieces / K, so that one of them drawn uniformly is an
+  // unbiased estimate of the mean; a matrix element draws one per sample. The fields above are
+  // then those of the first piece (the sample's own ray's, when it has one): the row's place for
+  // slicing and distances. 0: the segment is its own row.
+  uint32_t first_piece = 0;
+  uint16_t pieces = 0;
 };
 
 struct CameraSample {
@@ -61,6 +70,7 @@ struct ReceiverStats {
   size_t media_direct_samples = 0; // samples of the emitters' single scattering (media_direct_samples)
   size_t split_vertices = 0;       // receiver-path vertices that split (ReceiverOptions::splits)
   size_t coverage_paths = 0;       // camera paths traced for receiver samples beyond one per sample
+  size_t segment_coverage = 1;     // film positions per media row (ReceiverOptions::segment_coverage)
 };
 
 struct ReceiverSet {
@@ -68,6 +78,7 @@ struct ReceiverSet {
   std::vector<CameraSample> samples;  // pixel-major: sample s of pixel p is p * spp + s
   std::vector<ShadingPoint> points;   // in sample order
   std::vector<EyeSegment> segments;   // in sample order (empty unless segments_per_ray >= 0)
+  std::vector<EyeSegment> segment_pieces;  // the coverage rays' pieces of the segments that have them
   ReceiverStats stats;
 };
 
@@ -119,6 +130,13 @@ struct ReceiverOptions {
   // expectation). 1: one path per sample. Only for filters without negative lobes and without
   // eye segments (media rows keep one path per sample).
   int coverage = 1;
+  // Coverage of media rows (docs/rendering.md, "Coverage of eye segments"): with one segment per
+  // medium piece (segments_per_ray 0) and a positive filter, a receiver sample's first medium
+  // piece (reached through interfaces only) becomes one row for this many film positions (its
+  // own and the coverage lattice's): each element of the row integrates along one of their
+  // pieces per sample (EyeSegment::pieces), so the row's sum over many lights averages the
+  // pixel's footprint at the cost of one row. 1: one ray per row.
+  int segment_coverage = 1;
 };
 // The most a camera path splits (--param splits).
 inline constexpr int kMaxSplits = 16;
@@ -126,6 +144,12 @@ inline constexpr int kMaxSplits = 16;
 inline constexpr int kMaxCoverage = 64;
 // Its default.
 inline constexpr int kDefaultCoverage = 16;
+// The default of --param segment_coverage (docs/methods/media-elements.md, "Coverage of eye
+// segments").
+inline constexpr int kDefaultSegmentCoverage = 16;
+// The coverage pieces' tracks hold about this many knots at most (16 bytes each): K is lowered
+// for images whose media rows would need more (receivers.cpp).
+inline constexpr size_t kSegmentCoverageKnots = size_t(1) << 24;
 // The default of --param camera_paths for a scene whose camera paths can collect light by
 // themselves (render_job.cpp, CameraPathsFor).
 inline constexpr int kDefaultCameraPaths = 256;

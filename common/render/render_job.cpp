@@ -190,6 +190,9 @@ Plan BuildPlanWith(const std::function<const SceneDescription&()>& scene_desc, c
   ropt.sharp_samples = plan.matrix_options.sharp_samples;
   ropt.splits = plan.matrix_options.splits;
   ropt.coverage = method_options.coverage;
+  // Refined slices split segments at their boundaries, which a row of several rays' pieces has
+  // no single place for: refinement keeps one ray per row.
+  ropt.segment_coverage = options.segment_slicing.refine ? 1 : method_options.segment_coverage;
   ropt.camera_paths = options.camera_paths.value_or(CameraPathsFor(scene, plan.effects, ropt.media_direct_samples > 0));
   *plan.receivers = GenerateReceivers(scene, filter_sampler, ropt);
   timer.End("receivers");
@@ -415,6 +418,8 @@ nlohmann::json MakeStats(const Plan& plan, const RenderSettings& settings,
                     {"specular_bounces", plan.receivers->stats.specular_bounces},
                     {"split_vertices", plan.receivers->stats.split_vertices},
                     {"coverage_paths", plan.receivers->stats.coverage_paths},
+                    {"segment_coverage", plan.receivers->stats.segment_coverage},
+                    {"segment_pieces", plan.receivers->segment_pieces.size()},
                     {"points_per_sample", plan.receivers->samples.empty() ? 0.0
                                           : double(plan.receivers->points.size()) / double(plan.receivers->samples.size())},
                     {"escaped", plan.receivers->stats.escaped},

@@ -95,6 +95,8 @@ MethodRenderOptions ReadMethodRenderOptions(const OptionMap& params, const Gathe
   MethodRenderOptions o;
   if (!method.renders_film()) {
     o.coverage = int(params.GetInt("coverage", method.takes_coverage_rows() ? kDefaultCoverage : 1, 1, kMaxCoverage));
+    o.segment_coverage = int(params.GetInt("segment_coverage", method.takes_coverage_rows() ? kDefaultSegmentCoverage : 1,
+                                           1, kMaxCoverage));
   } else {
     o.film_tile = int(params.GetInt("tile", 32, 1, 4096));
     o.film_pass_spp = int(params.GetInt("pass_spp", 64, 1, 1 << 20));

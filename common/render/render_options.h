@@ -44,11 +44,12 @@ struct RenderOptions {
 RenderOptions ReadRenderOptions(const OptionMap& params, uint64_t seed);
 
 // The keys whose meaning depends on the method: a matrix method's coverage paths per receiver
-// sample (ReceiverOptions::coverage; one for a method whose rows should not be coverage points,
-// GatherMethod::takes_coverage_rows), a film method's tiles and sample passes (FilmTasks). Read
+// sample and film positions per media row (ReceiverOptions::coverage and segment_coverage; one
+// for a method whose rows should not be coverage points, GatherMethod::takes_coverage_rows), a film method's tiles and sample passes (FilmTasks). Read
 // only for the methods they apply to, so the others reject them as unknown.
 struct MethodRenderOptions {
   int coverage = 1;
+  int segment_coverage = 1;  // ReceiverOptions::segment_coverage
   int film_tile = 0;
   int film_pass_spp = 0;
 };

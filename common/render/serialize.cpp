@@ -76,7 +76,7 @@ std::vector<uint32_t> GetIndices(ByteReader& r) {
 constexpr size_t kLightBytes = 4 * 3 * 5 + 4 + 1 + 1 + 1 + 1 + 4 + 4 + 1 + 4 + 2 + 4;
 constexpr size_t kPointBytes = 4 * 3 * 5 + 4 + 4 + 1 + 2 + 2;
 constexpr size_t kSampleBytes = 4 + 4 + 12 + 4 + 4 + 4 + 4;
-constexpr size_t kSegmentBytes = 12 + 12 + 4 + 12 + 2 + 1 + 4;
+constexpr size_t kSegmentBytes = 12 + 12 + 4 + 12 + 2 + 1 + 4 + 4 + 2;
 
 }  // namespace
 
@@ -219,7 +219,7 @@ Bytes SerializeReceiverSet(const ReceiverSet& set) {
   for (size_t v : {set.stats.camera_rays, set.stats.specular_bounces, set.stats.escaped,
                    set.stats.nonfinite_rays, set.stats.camera_paths, set.stats.camera_pilot_paths,
                    set.stats.camera_active_pixels, set.stats.media_direct_samples, set.stats.split_vertices,
-                   set.stats.coverage_paths})
+                   set.stats.coverage_paths, set.stats.segment_coverage})
     w.U64(v);
   w.U64(set.samples.size());
   for (const CameraSample& c : set.samples) {
@@ -241,14 +241,18 @@ Bytes SerializeReceiverSet(const ReceiverSet& set) {
     w.U16(uint16_t(p.medium_out));
     w.U16(uint16_t(p.medium_in));
   }
-  w.U64(set.segments.size());
-  for (const EyeSegment& e : set.segments) {
-    PutVec3(w, e.o); PutVec3(w, e.d);
-    w.F32(e.length);
-    PutRGB(w, e.throughput);
-    w.U16(uint16_t(e.medium));
-    w.U8(e.depth);
-    w.U32(e.sample);
+  for (const std::vector<EyeSegment>* segments : {&set.segments, &set.segment_pieces}) {
+    w.U64(segments->size());
+    for (const EyeSegment& e : *segments) {
+      PutVec3(w, e.o); PutVec3(w, e.d);
+      w.F32(e.length);
+      PutRGB(w, e.throughput);
+      w.U16(uint16_t(e.medium));
+      w.U8(e.depth);
+      w.U32(e.sample);
+      w.U32(e.first_piece);
+      w.U16(e.pieces);
+    }
   }
   return w.Take();
 }
@@ -267,7 +271,7 @@ ReceiverSet DeserializeReceiverSet(ByteView bytes) {
   for (size_t* v : {&set.stats.camera_rays, &set.stats.specular_bounces, &set.stats.escaped,
                     &set.stats.nonfinite_rays, &set.stats.camera_paths, &set.stats.camera_pilot_paths,
                     &set.stats.camera_active_pixels, &set.stats.media_direct_samples, &set.stats.split_vertices,
-                    &set.stats.coverage_paths})
+                    &set.stats.coverage_paths, &set.stats.segment_coverage})
     *v = size_t(r.U64());
   const uint64_t pixels = uint64_t(width) * height;
   set.samples.resize(r.Count(kSampleBytes));
@@ -297,18 +301,27 @@ ReceiverSet DeserializeReceiverSet(ByteView bytes) {
       throw SerializeError("receiver set: shading point names sample " + std::to_string(p.sample) +
                            " of " + std::to_string(set.samples.size()));
   }
-  set.segments.resize(r.Count(kSegmentBytes));
-  for (EyeSegment& e : set.segments) {
-    e.o = GetVec3(r); e.d = GetVec3(r);
-    e.length = r.F32();
-    e.throughput = GetRGB(r);
-    e.medium = int16_t(r.U16());
-    e.depth = r.U8();
-    e.sample = r.U32();
-    if (e.sample >= set.samples.size())
-      throw SerializeError("receiver set: eye segment names sample " + std::to_string(e.sample) +
-                           " of " + std::to_string(set.samples.size()));
+  for (std::vector<EyeSegment>* segments : {&set.segments, &set.segment_pieces}) {
+    segments->resize(r.Count(kSegmentBytes));
+    for (EyeSegment& e : *segments) {
+      e.o = GetVec3(r); e.d = GetVec3(r);
+      e.length = r.F32();
+      e.throughput = GetRGB(r);
+      e.medium = int16_t(r.U16());
+      e.depth = r.U8();
+      e.sample = r.U32();
+      e.first_piece = r.U32();
+      e.pieces = r.U16();
+      if (e.sample >= set.samples.size())
+        throw SerializeError("receiver set: eye segment names sample " + std::to_string(e.sample) +
+                             " of " + std::to_string(set.samples.size()));
+    }
   }
+  for (const EyeSegment& e : set.segments)
+    if (e.pieces > 0 && uint64_t(e.first_piece) + e.pieces > set.segment_pieces.size())
+      throw SerializeError("receiver set: eye segment names coverage pieces out of range");
+  for (const EyeSegment& e : set.segment_pieces)
+    if (e.pieces > 0) throw SerializeError("receiver set: a coverage piece has pieces of its own");
   for (const CameraSample& c : set.samples) {
     if (c.point_count > 0 &&
         (c.first_point < 0 || size_t(c.first_point) + c.point_count > set.points.size()))

@@ -42,6 +42,7 @@ enum class RngStream : uint64_t {
   kCameraPilot = 13,  // camera-side pilot paths (receivers.cpp): one generator per pixel
   kNearSample = 14,  // adaptive-completion: near lights sampled per row
   kClampProbe = 15,  // the clamp-loss probe's light sets (clamp_probe.h): one per batch
+  kSegmentCoverage = 16,  // coverage rays of media rows (receivers.cpp): one per camera sample
 };
 
 // PCG32 (O'Neill 2014): small state, good statistics, cheap to seed per pixel / per path.

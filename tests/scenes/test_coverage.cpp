@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "common/receivers/receivers.h"
 #include "common/render/render_job.h"
 #include "tests/common/glossy_scene.h"
 #include "tests/common/test_util.h"
@@ -122,6 +123,132 @@ TEST(Coverage, TheDefaultIsUnbiasedWhereShadingVaries) {
       }
   }
   EXPECT_NEAR(sum_cov / sum_ref, 1.0, 0.003);
+}
+
+// Coverage of media rows (docs/rendering.md, "Coverage of eye segments"): a sample's first
+// medium piece becomes one row for K film positions, each element sample integrating along one
+// of their pieces. A sphere of fog under a distant light along the view axis, single scattering
+// only and gathered by the rows (media_direct=0): its silhouette crosses pixels at every offset
+// and its chord varies within each pixel. At one row per pixel, coverage comes close to K
+// samples per pixel and far below one ray per row.
+const char* kFogSphere = R"(
+Integrator "volpath" "integer maxdepth" [ 1 ]
+Film "rgb" "integer xresolution" [ 32 ] "integer yresolution" [ 32 ] "string filename" [ "fog.exr" ]
+PixelFilter "box"
+LookAt 0 0 6  0 0 0  0 1 0
+Camera "perspective" "float fov" [ 30 ]
+WorldBegin
+LightSource "distant" "point3 from" [ 0 0 6 ] "point3 to" [ 0 0 0 ] "rgb L" [ 3 3 3 ]
+MakeNamedMedium "fog" "string type" "homogeneous" "rgb sigma_a" [ 0.2 0.2 0.2 ] "rgb sigma_s" [ 1.5 1.5 1.5 ] "float g" [ 0 ]
+AttributeBegin
+  MediumInterface "fog" ""
+  Material "interface"
+  Shape "sphere" "float radius" [ 1.1 ]
+AttributeEnd
+)";
+
+RenderOutput RenderFog(const std::string& path, int spp, int segment_coverage, uint64_t seed = 5) {
+  RenderSettings s;
+  s.method = "brute";
+  s.spp = spp;
+  s.lights = 100;
+  s.seed = seed;
+  s.params = {"segment_coverage=" + std::to_string(segment_coverage), "camera_paths=0", "media_direct=0"};
+  return RenderScene(path, s);
+}
+
+TEST(Coverage, MediaRowsAverageThePixelAtOneRowPerPixel) {
+  TempDir dir;
+  const std::string path = dir.Write("fog.pbrt", kFogSphere);
+  constexpr int K = 16;
+  const RenderOutput coverage = RenderFog(path, 1, K);
+  const RenderOutput supersampled = RenderFog(path, K, 1);
+  const RenderOutput single = RenderFog(path, 1, 1);
+  const Image truth = RenderFog(path, 1024, 1).image;
+  // The silhouette's radius in pixels (fov 30° over 32 pixels, the sphere 6 away): pixels whose
+  // centre lies within 0.75 of it are partly covered.
+  const double silhouette = std::tan(std::asin(1.1 / 6.0)) / std::tan(15.0 * double(kPi) / 180.0) * 16.0;
+  double err_coverage = 0, err_supersampled = 0, err_single = 0, total = 0;
+  double edge_coverage = 0, edge_supersampled = 0, edge_single = 0;
+  int edge_pixels = 0;
+  for (int y = 0; y < truth.height; ++y)
+    for (int x = 0; x < truth.width; ++x) {
+      const double t = Lum(truth.at(x, y));
+      const double c = std::abs(Lum(coverage.image.at(x, y)) - t), s = std::abs(Lum(supersampled.image.at(x, y)) - t),
+                   o = std::abs(Lum(single.image.at(x, y)) - t);
+      total += t;
+      err_coverage += c, err_supersampled += s, err_single += o;
+      if (std::abs(std::hypot(x + 0.5 - 16.0, y + 0.5 - 16.0) - silhouette) < 0.75)
+        ++edge_pixels, edge_coverage += c, edge_supersampled += s, edge_single += o;
+    }
+  std::printf("rel_l1: coverage %.4f, %d rays per pixel %.4f, one ray %.4f; on %d edge pixels: %.4f, %.4f, %.4f\n",
+              err_coverage / total, K, err_supersampled / total, err_single / total, edge_pixels,
+              edge_coverage / total, edge_supersampled / total, edge_single / total);
+  EXPECT_GT(total, 0.0);
+  EXPECT_GT(edge_pixels, 40);
+  // The same element samples per pixel as one ray (16 for the distant light's column), closer
+  // to the truth; on the silhouette, as close as K rays of as many samples each.
+  EXPECT_LT(err_coverage, 0.7 * err_single);
+  EXPECT_LT(edge_coverage, 0.4 * edge_single);
+  EXPECT_LT(edge_coverage, 2.0 * edge_supersampled);
+  // One row per sample that sees the fog from any of its positions, against K per pixel.
+  const nlohmann::json& rc = coverage.stats["receivers"];
+  const double rows = rc["segments"].get<double>(), pieces = rc["segment_pieces"].get<double>();
+  EXPECT_EQ(rc["segment_coverage"].get<int>(), K);
+  EXPECT_LE(rows, double(truth.width * truth.height));
+  EXPECT_GT(pieces, 8 * rows);  // most rows are inside the silhouette: K pieces each
+  EXPECT_LT(rows, 0.2 * supersampled.stats["receivers"]["segments"].get<double>());
+  EXPECT_EQ(supersampled.stats["receivers"]["segment_pieces"].get<double>(), 0.0);
+}
+
+// The default coverage of media rows in a grid medium with virtual ray lights (multiple
+// scattering through the rows' pieces) has the mean of many rays per pixel, the lights being the
+// same: its estimator only averages the pixel's film positions.
+TEST(Coverage, MediaRowsAreUnbiasedWithRayLightsInAGrid) {
+  TempDir dir;
+  const std::string path = dir.Write("grid.pbrt", R"(
+Integrator "volpath" "integer maxdepth" [ 3 ]
+Film "rgb" "integer xresolution" [ 24 ] "integer yresolution" [ 24 ] "string filename" [ "grid.exr" ]
+PixelFilter "box"
+LookAt 0 0 9  0 0 0  0 1 0
+Camera "perspective" "float fov" [ 30 ]
+WorldBegin
+LightSource "distant" "rgb L" [ 2 2 2 ] "point3 from" [ -1 2 1 ] "point3 to" [ 0 0 0 ]
+AttributeBegin
+  Translate -1.5 -1.5 -1.5
+  Scale 3 3 3
+  MakeNamedMedium "smoke" "string type" "uniformgrid" "integer nx" [ 4 ] "integer ny" [ 3 ] "integer nz" [ 2 ]
+    "point3 p0" [ 0 0 0 ] "point3 p1" [ 1 1 1 ] "float g" [ 0.3 ]
+    "rgb sigma_a" [ 0.1 0.1 0.1 ] "rgb sigma_s" [ 0.9 0.9 0.9 ]
+    "float density" [ 0 1 2 1  1 2 0 1  0 1 1 0   1 0 2 1  2 1 1 0  0 0 1 1 ]
+AttributeEnd
+AttributeBegin
+  MediumInterface "smoke" ""
+  Material "interface"
+  Shape "sphere" "float radius" [ 2.7 ]
+AttributeEnd
+)");
+  double sum_cov = 0, sum_ref = 0;
+  for (uint64_t seed = 0; seed < 4; ++seed) {
+    RenderSettings s;
+    s.method = "brute";
+    s.lights = 300;
+    s.seed = seed;
+    s.spp = 1;
+    s.params = {"camera_paths=0"};
+    const RenderOutput cov = RenderScene(path, s);
+    EXPECT_EQ(cov.stats["receivers"]["segment_coverage"].get<int>(), kDefaultSegmentCoverage);
+    s.spp = 16;
+    s.params = {"camera_paths=0", "segment_coverage=1"};
+    const RenderOutput ref = RenderScene(path, s);
+    for (int y = 0; y < cov.image.height; ++y)
+      for (int x = 0; x < cov.image.width; ++x) {
+        sum_cov += Lum(cov.image.at(x, y));
+        sum_ref += Lum(ref.image.at(x, y));
+      }
+  }
+  std::printf("image mean: coverage / 16 rays per pixel = %.5f\n", sum_cov / sum_ref);
+  EXPECT_NEAR(sum_cov / sum_ref, 1.0, 0.005);
 }
 
 }  // namespace test_coverage

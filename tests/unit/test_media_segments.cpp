@@ -143,6 +143,44 @@ TEST(MediaElements, DirectionalLightToSegment) {
   ExpectMatches(MeanSegmentElement(f, s, L, 4096, 16), expect);
 }
 
+// A media row with coverage (EyeSegment::pieces): two of K = 5 film positions have a piece, each
+// scaled by 2 / 5; a point light's element is the mean over the five positions of the pieces'
+// integrals, its 16 stratified samples spread over the pieces.
+TEST(MediaElements, PointLightToCoverageRow) {
+  Fixture f;
+  VirtualLight L;
+  L.kind = VirtualLightKind::kPoint;
+  L.p = {0.5f, 1.3f, 1.1f};
+  L.power = RGB(2.f);
+  EyeSegment a = TestSegment(), b = TestSegment();
+  b.o = a.o + Vec3{0.2f, -0.5f, 0.3f};
+  b.length = 5.f;
+  const auto intensity = [](Vec3) { return 2.f; };
+  const double expect = (SegmentQuadrature(a, L.p, intensity, false, {}) + SegmentQuadrature(b, L.p, intensity, false, {})) / 5;
+  f.receivers.width = f.receivers.height = 1;
+  f.receivers.samples.resize(1);
+  f.receivers.segment_pieces = {a, b};
+  for (EyeSegment& p : f.receivers.segment_pieces) p.throughput *= 2.f / 5.f;
+  EyeSegment row = f.receivers.segment_pieces[0];
+  row.pieces = 2;
+  const int copies = 4096;
+  for (int i = 0; i < copies; ++i) f.receivers.segments.push_back(row);
+  f.lights.lights.push_back(L);
+  MatrixOptions opt;
+  opt.clamp = 0;
+  opt.segment_samples = 16;
+  LightingMatrix m(*f.scene, f.receivers, f.lights, opt);
+  MatrixCounters c;
+  double sum = 0, sum2 = 0;
+  for (int i = 0; i < copies; ++i) {
+    const double v = double(m.Element(uint32_t(i), 0, &c).g);
+    sum += v;
+    sum2 += v * v;
+  }
+  const double mean = sum / copies;
+  ExpectMatches({mean, std::sqrt(std::max(sum2 / copies - mean * mean, 0.0) / copies)}, expect);
+}
+
 // Point → point: closed form, no integral; the medium VPL's phase, the BSDF and the shadow
 // segment's transmittance.
 TEST(MediaElements, MediumVPLToSurfacePoint) {

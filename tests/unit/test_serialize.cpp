@@ -120,6 +120,46 @@ TEST(Serialize, ReceiverSetRoundTrip) {
   EXPECT_TRUE(SameBits(out.points[1].p, Vec3(1, 2, 3)));
 }
 
+// Eye segments and their coverage pieces (EyeSegment::pieces) cross the wire whole; a segment
+// that names pieces past the end, or a piece that has pieces of its own, is refused.
+TEST(Serialize, EyeSegmentsAndCoveragePiecesRoundTrip) {
+  ReceiverSet in = SampleReceivers();
+  in.stats.segment_coverage = 16;
+  EyeSegment seg;
+  seg.o = Vec3(1, 2, 3);
+  seg.d = Vec3(0, 0, -1);
+  seg.length = 2.5f;
+  seg.throughput = RGB(0.25f);
+  seg.medium = 1;
+  seg.sample = 2;
+  seg.first_piece = 1;
+  seg.pieces = 2;
+  in.samples[2].first_segment = 0;
+  in.samples[2].segment_count = 1;
+  in.segments = {seg};
+  EyeSegment piece = seg;
+  piece.first_piece = 0;
+  piece.pieces = 0;
+  in.segment_pieces = {piece, piece, piece};
+  in.segment_pieces[2].length = 1.75f;
+  const ReceiverSet out = DeserializeReceiverSet(SerializeReceiverSet(in));
+  EXPECT_EQ(out.stats.segment_coverage, 16u);
+  ASSERT_EQ(out.segments.size(), 1u);
+  ASSERT_EQ(out.segment_pieces.size(), 3u);
+  EXPECT_EQ(out.segments[0].first_piece, 1u);
+  EXPECT_EQ(out.segments[0].pieces, 2);
+  EXPECT_TRUE(SameBits(out.segments[0].o, seg.o));
+  EXPECT_TRUE(SameBits(out.segment_pieces[2].length, 1.75f));
+  EXPECT_EQ(out.segment_pieces[1].medium, 1);
+
+  ReceiverSet past_end = in;
+  past_end.segments[0].first_piece = 2;
+  EXPECT_THROW(DeserializeReceiverSet(SerializeReceiverSet(past_end)), SerializeError);
+  ReceiverSet nested = in;
+  nested.segment_pieces[0].pieces = 1;
+  EXPECT_THROW(DeserializeReceiverSet(SerializeReceiverSet(nested)), SerializeError);
+}
+
 TEST(Serialize, TaskAndOutputRoundTrip) {
   SubMatrixTask t;
   t.stage = 2;

@@ -275,6 +275,47 @@ TEST(VrlElements, VrlToEyeSegmentMatchesQuadrature) {
   }
 }
 
+// A media row with coverage (EyeSegment::pieces; receivers.h): K film positions, of which 3 have
+// a piece, each piece's throughput scaled by 3 / K. The element is the mean over the K positions
+// of their pieces' integrals, whichever piece the row names itself and whatever the samples per
+// element: 16 stratified ones, or 1 (the default), each sample on a piece of its own.
+TEST(VrlElements, CoverageRowIsTheMeanOverItsFilmPositions) {
+  const EyeSegment base = TestSegment();
+  std::vector<EyeSegment> pieces = {base, base, base};
+  pieces[1].o = base.o + Vec3{0, 0.4f, 0.1f};
+  pieces[2].d = Normalize(base.d + Vec3{0, 0.15f, 0.05f});
+  pieces[2].length = 6.f;
+  constexpr int kPositions = 4;
+  const VirtualLight vrl = MakeVrl({-1, 4, -2}, {0.2f, -1, 0.5f}, 6, 0.6f, 5.f);
+  double expect = 0;
+  for (const EyeSegment& p : pieces) expect += SegmentQuadrature(p, vrl, 0.0) / kPositions;
+  for (int samples : {16, 1}) {
+    SCOPED_TRACE(samples);
+    Fixture f;
+    f.receivers.width = f.receivers.height = 1;
+    f.receivers.samples.resize(1);
+    f.receivers.segment_pieces = pieces;
+    for (EyeSegment& p : f.receivers.segment_pieces) p.throughput *= 3.f / float(kPositions);
+    EyeSegment row = f.receivers.segment_pieces[1];
+    row.first_piece = 0;
+    row.pieces = 3;
+    const int copies = samples == 1 ? 65536 : 8192;
+    for (int i = 0; i < copies; ++i) f.receivers.segments.push_back(row);
+    f.lights.lights.push_back(vrl);
+    MatrixOptions opt;
+    opt.clamp = 0.f;
+    opt.segment_samples = samples;
+    LightingMatrix m(*f.scene, f.receivers, f.lights, opt);
+    MatrixCounters counters;
+    const MeanAndError got = MeanOverRows(m, copies, &counters);
+    EXPECT_NEAR(got.mean, expect, 4 * got.error + 1e-3 * expect)
+        << "got " << got.mean << " ± " << got.error << " expected " << expect;
+    EXPECT_LT(got.error, 0.01 * expect) << got.error;
+    // Not the row's own piece alone, nor the sum of the pieces.
+    EXPECT_GT(std::abs(got.mean - SegmentQuadrature(pieces[1], vrl, 0.0)), 8 * got.error);
+  }
+}
+
 // A VRL deeper than the row's path budget contributes nothing (pbrt's maxdepth: the VRL's own
 // scattering event counts), and an element is the same whichever method asks for it.
 TEST(VrlElements, DepthBudgetAndDeterminism) {
