@@ -39,7 +39,7 @@ struct MatrixOptions {
   float bsdf_clamp = 1.f;
   // Samples per element of an eye-segment row and per element of a VRL column
   // (segment_element.cpp, vrl_element.cpp; a real light on an eye segment takes 16 times more).
-  int segment_samples = 2;
+  int segment_samples = 1;
   // Media elements in grid media (segment_element.cpp, vrl_element.cpp): the share of their
   // samples drawn where the media scatter (MediumTrack), the rest where the geometry term peaks.
   // Homogeneous media draw them all from the geometric pdfs (LightingMatrix::DensityFraction).

@@ -10,7 +10,7 @@ namespace {
 
 // The matrix's keys (lighting_matrix.h, MatrixOptions), the clamp aside.
 void ReadMatrixOptions(const OptionMap& params, uint64_t seed, MatrixOptions* options) {
-  options->segment_samples = int(params.GetInt("segment_samples", 2, 1, 64));
+  options->segment_samples = int(params.GetInt("segment_samples", 1, 1, 64));
   // The emitters' single scattering in media: on the camera side with this many samples per
   // medium piece, or (0) gathered from their columns by the eye segments.
   options->media_direct_samples = int(params.GetInt("media_direct", 2, 0, 256));

@@ -115,11 +115,17 @@ TEST(MediaHardCases, AbsorbingSlabIsExactFromOneEMinusEightToOneEFour) {
 // The largest radiance single scattering can send toward the camera from a distant light of
 // irradiance π: π·p_max, p_max = (1 + |g|)/(4π(1 − |g|)²) the HG peak (1584 for |g| = 0.99);
 // twice that for multiple scattering, plus the floor (0.5 under the light alone; at most twice
-// that with the slab's light added).
+// that with the slab's light added). A pixel's estimate is not bounded by its radiance: here the
+// light's first flights run straight down beside the orthographic camera's rays, and a flight
+// within the clamp distance of one gives its row G = 1/d_min² over their whole overlap. With 200
+// lights one such pixel reached 1.21 (two samples per element, one ray per row) and 1.58 (one
+// sample, 16 rays per row; g = 0, bound 1.5, image mean 0.30). So the estimates are held to
+// twice the bound: what a blow-up (a singular element, an unclamped pair) exceeds by far.
 float RadianceBound(double g) {
   const double p_max = (1 + std::abs(g)) / (4 * M_PI * (1 - std::abs(g)) * (1 - std::abs(g)));
   return float(1 + 2 * M_PI * p_max);
 }
+float EstimateBound(double g) { return 2 * RadianceBound(g); }
 
 // Scattering media over σ_t·d = 1e-8 … 1e4 at albedo 1 (g = 0) and 0.5 (g = ±0.99): finite,
 // non-negative, bounded; σ_t = 1e-8 is the empty medium's image.
@@ -143,7 +149,7 @@ TEST(MediaHardCases, ScatteringSlabsStayFiniteAndBounded) {
         const RenderOutput out = Render(
             dir, Scene(Slab(Homogeneous(sigma_t * (1 - c.albedo), sigma_t * c.albedo, c.g)), 3),
             method, 200);
-        ExpectSane(out, RadianceBound(c.g), label);
+        ExpectSane(out, EstimateBound(c.g), label);
         if (tau == 1e-8) {
           SCOPED_TRACE(label);
           testing::ExpectImagesNear(empty.image, out.image, 1e-4f);
