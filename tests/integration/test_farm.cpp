@@ -9,8 +9,9 @@
 #include <set>
 #include <thread>
 
-#include "common/render/render_job.h"
 #include "cli/embedded_farm.h"
+#include "common/receivers/receivers.h"
+#include "common/render/render_job.h"
 #include "tests/common/caustic_scene.h"
 #include "tests/common/glossy_scene.h"
 #include "tests/integration/farm_harness.h"
@@ -180,6 +181,11 @@ TEST(Farm, MediaSceneOnWorkerProcessesMatchesTheDirectRenderBitForBit) {
   EXPECT_EQ(stats["method"], "adaptive-completion");
   EXPECT_EQ(stats["lights"]["vrl"], direct.stats["lights"]["vrl"]);
   EXPECT_EQ(stats["receivers"]["segments"], direct.stats["receivers"]["segments"]);
+  // The rows cover their pixels (coverage of eye segments, on by default): the pieces cross to
+  // the workers with the rows.
+  EXPECT_EQ(stats["receivers"]["segment_coverage"], kDefaultSegmentCoverage);
+  EXPECT_GT(direct.stats["receivers"]["segment_pieces"].get<double>(), direct.stats["receivers"]["segments"].get<double>());
+  EXPECT_EQ(stats["receivers"]["segment_pieces"], direct.stats["receivers"]["segment_pieces"]);
   EXPECT_EQ(stats["tasks"], direct.stats["tasks"]);
   EXPECT_EQ(stats["matrix"]["elements_evaluated"], direct.stats["matrix"]["elements_evaluated"]);
   EXPECT_GT(stats["matrix"]["transmittance_evals"].get<double>(), 0);
