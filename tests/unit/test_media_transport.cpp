@@ -78,6 +78,8 @@ TEST(MediaTransport, SurfaceOnlySceneDoesNoMediaWork) {
   EXPECT_EQ(out.stats["receivers"]["transmittance_evals"].get<uint64_t>(), 0u);
   EXPECT_EQ(out.stats["lights"]["vrl"].get<uint64_t>(), 0u);
   EXPECT_EQ(out.stats["receivers"]["segments"].get<uint64_t>(), 0u);
+  EXPECT_EQ(out.stats["receivers"]["segment_pieces"].get<uint64_t>(), 0u);
+  EXPECT_EQ(out.stats["receivers"]["segment_coverage"].get<uint64_t>(), 1u);
   EXPECT_EQ(out.stats["receivers"]["media_direct_samples"].get<uint64_t>(), 0u);
   EXPECT_EQ(out.stats["lights"]["vrl_flights"].get<uint64_t>(), 0u);
   EXPECT_EQ(out.stats["media"]["tracks"].get<uint64_t>(), 0u);
