@@ -92,6 +92,9 @@ MediumTrack::MediumTrack(const Medium& medium, const MediumRay& ray)
   }
   weight_ = knots_.back().cdf;
   sigma_t_avg_ = sigma_t_.Average();
+  // The matrix keeps a track per eye-segment piece and per VRL piece for the whole render: no
+  // spare capacity from the appends (it was about half the knots' memory).
+  knots_.shrink_to_fit();
 }
 
 RGB MediumTrack::TransmittanceAtDepth(float depth) const {
