@@ -784,6 +784,12 @@ void MergeCoverage(std::vector<CoveragePath>& paths, Rng& rng, CameraSample* cs,
   }
 }
 
+// u + offset mod 1, kept below 1 (u, offset ∈ [0, 1)²).
+Vec2 ShiftedOnTorus(Vec2 u, Vec2 offset) {
+  const auto wrap = [](float v) { return std::min(v >= 1.f ? v - 1.f : v, 0x1.fffffep-1f); };
+  return {wrap(u.x + offset.x), wrap(u.y + offset.y)};
+}
+
 // K offsets in [0, 1)² that form a group under addition mod 1 (a rank-1 lattice
 // (j/K, j·g/K mod 1), its generator g the one that keeps the points furthest apart on the torus):
 // a sample's coverage positions are its own plus each offset, so the K positions are equally
@@ -883,9 +889,8 @@ void CoverFirstSegment(const Scene& scene, const FilterSampler& filter, const st
                        ReceiverStats* st) {
   const bool own_first = !own->empty() && own->front().depth == 1;
   if (own_first) pieces->push_back(own->front());
-  const auto wrap = [](float v) { return std::min(v >= 1.f ? v - 1.f : v, 0x1.fffffep-1f); };
   for (size_t j = 1; j < lattice.size(); ++j) {
-    const FilterSample fs = filter.Sample({wrap(u0.x + lattice[j].x), wrap(u0.y + lattice[j].y)});
+    const FilterSample fs = filter.Sample(ShiftedOnTorus(u0, lattice[j]));
     const Ray ray = FilmRay(scene, x, y, fs, rng);
     ++st->camera_rays;
     ++st->coverage_paths;
@@ -1017,10 +1022,9 @@ ReceiverSet GenerateReceivers(const Scene& scene, const FilterSampler& filter,
           cs.pixel = pixel;
           std::vector<CoveragePath> ways(static_cast<size_t>(coverage));
           const Vec2 u0{Sobol2DComponent(uint32_t(s), 0, scramble0), Sobol2DComponent(uint32_t(s), 1, scramble1)};
-          const auto wrap = [](float v) { return std::min(v >= 1.f ? v - 1.f : v, 0x1.fffffep-1f); };
           for (int j = 0; j < coverage; ++j) {
             const Vec2 o = lattice[size_t(j)];
-            const FilterSample fs = filter.Sample({wrap(u0.x + o.x), wrap(u0.y + o.y)});
+            const FilterSample fs = filter.Sample(ShiftedOnTorus(u0, o));
             const Ray ray = FilmRay(scene, x, y, fs, rng);
             ways[size_t(j)].weight = fs.weight;
             ++st.camera_rays;
