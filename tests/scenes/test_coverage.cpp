@@ -45,14 +45,20 @@ AttributeBegin
 AttributeEnd
 )";
 
-RenderOutput Render(const std::string& path, int spp, int coverage) {
+// Brute force, 100 lights, seed 5, no camera-side paths, and `params`.
+RenderOutput RenderBrute(const std::string& path, int spp, std::vector<std::string> params) {
   RenderSettings s;
   s.method = "brute";
   s.spp = spp;
   s.lights = 100;
   s.seed = 5;
-  s.params = {"coverage=" + std::to_string(coverage), "camera_paths=0"};
+  s.params = std::move(params);
+  s.params.push_back("camera_paths=0");
   return RenderScene(path, s);
+}
+
+RenderOutput Render(const std::string& path, int spp, int coverage) {
+  return RenderBrute(path, spp, {"coverage=" + std::to_string(coverage)});
 }
 
 TEST(Coverage, AntialiasesEdgesAtOneReceiverPerSurface) {
@@ -147,14 +153,8 @@ AttributeBegin
 AttributeEnd
 )";
 
-RenderOutput RenderFog(const std::string& path, int spp, int segment_coverage, uint64_t seed = 5) {
-  RenderSettings s;
-  s.method = "brute";
-  s.spp = spp;
-  s.lights = 100;
-  s.seed = seed;
-  s.params = {"segment_coverage=" + std::to_string(segment_coverage), "camera_paths=0", "media_direct=0"};
-  return RenderScene(path, s);
+RenderOutput RenderFog(const std::string& path, int spp, int segment_coverage) {
+  return RenderBrute(path, spp, {"segment_coverage=" + std::to_string(segment_coverage), "media_direct=0"});
 }
 
 TEST(Coverage, MediaRowsAverageThePixelAtOneRowPerPixel) {

@@ -57,11 +57,25 @@ struct Fixture {
   LightSet lights;
 };
 
-// Mean of the element over `copies` identical segment rows (each seeded by its row), and its
+// Mean of column 0 over the matrix's first `copies` rows (each seeded by its row), and its
 // standard error.
 struct MeanAndError {
   double mean = 0, error = 0;
 };
+MeanAndError MeanOverRows(const LightingMatrix& m, int copies) {
+  MatrixCounters c;
+  double sum = 0, sum2 = 0;
+  for (int i = 0; i < copies; ++i) {
+    const double v = double(m.Element(uint32_t(i), 0, &c).g);
+    sum += v;
+    sum2 += v * v;
+  }
+  EXPECT_GT(c.transmittance_evals, 0u);
+  const double mean = sum / copies;
+  return {mean, std::sqrt(std::max(sum2 / copies - mean * mean, 0.0) / copies)};
+}
+
+// The element of `light` on `copies` identical segment rows.
 MeanAndError MeanSegmentElement(Fixture& f, const EyeSegment& seg, const VirtualLight& light,
                                 int copies, int samples) {
   f.receivers = ReceiverSet{};
@@ -75,16 +89,7 @@ MeanAndError MeanSegmentElement(Fixture& f, const EyeSegment& seg, const Virtual
   opt.segment_samples = samples;
   LightingMatrix m(*f.scene, f.receivers, f.lights, opt);
   EXPECT_EQ(m.rows(), size_t(copies));
-  MatrixCounters c;
-  double sum = 0, sum2 = 0;
-  for (int i = 0; i < copies; ++i) {
-    const double v = double(m.Element(uint32_t(i), 0, &c).g);
-    sum += v;
-    sum2 += v * v;
-  }
-  EXPECT_GT(c.transmittance_evals, 0u);
-  const double mean = sum / copies;
-  return {mean, std::sqrt(std::max(sum2 / copies - mean * mean, 0.0) / copies)};
+  return MeanOverRows(m, copies);
 }
 
 // Within 4 standard errors of the quadrature (plus 0.1% for float arithmetic against the double
@@ -170,15 +175,7 @@ TEST(MediaElements, PointLightToCoverageRow) {
   opt.clamp = 0;
   opt.segment_samples = 16;
   LightingMatrix m(*f.scene, f.receivers, f.lights, opt);
-  MatrixCounters c;
-  double sum = 0, sum2 = 0;
-  for (int i = 0; i < copies; ++i) {
-    const double v = double(m.Element(uint32_t(i), 0, &c).g);
-    sum += v;
-    sum2 += v * v;
-  }
-  const double mean = sum / copies;
-  ExpectMatches({mean, std::sqrt(std::max(sum2 / copies - mean * mean, 0.0) / copies)}, expect);
+  ExpectMatches(MeanOverRows(m, copies), expect);
 }
 
 // Point → point: closed form, no integral; the medium VPL's phase, the BSDF and the shadow
