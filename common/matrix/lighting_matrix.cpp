@@ -4,6 +4,7 @@
 #include <embree3/rtcore.h>
 #include <tbb/parallel_for.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 
@@ -182,8 +183,12 @@ float SharpAlpha(const MatrixOptions& options, size_t lights) {
   // A Trowbridge-Reitz lobe of roughness α reflects into a cone of half-angle ≈ 2α, a solid
   // angle ≈ 4πα²; N lights spread over a hemisphere put 2Nα² of them in it. Below ~40 the
   // columns of glossy VPLs are too spiky for the sampling methods (docs/sharp-lobes.md
-  // measures where): α_sharp = √(40 / 2N) = √(20/N).
-  return std::min(0.3f, std::sqrt(20.f / float(std::max<size_t>(lights, 1))));
+  // measures where): α_sharp = √(40 / 2N) = √(20/N) for few lights. It never drops below
+  // kSharpAlphaFloor: lights are not spread evenly, and a lobe just above the threshold keeps
+  // its spikes at any count (docs/rendering.md, "Sharp lobes", measures it), so more lights
+  // must never hand a sampled lobe back to the columns.
+  const float by_count = std::sqrt(20.f / float(std::max<size_t>(lights, 1)));
+  return std::clamp(by_count, kSharpAlphaFloor, 0.3f);
 }
 
 LightingMatrix::LightingMatrix(const Scene& scene, const ReceiverSet& receivers,

@@ -84,7 +84,9 @@ struct MatrixOptions {
 };
 // The sharp-lobe threshold a render uses (docs/rendering.md, "Sharp lobes"): the option when
 // given, else √(20/N) for N virtual lights (a lobe that sees fewer than ~40 of them makes
-// spiky columns), at most 0.3. The plan and every worker set it on their scene before anything reads a BSDF.
+// spiky columns), between kSharpAlphaFloor and 0.3. The plan and every worker set it on their
+// scene before anything reads a BSDF.
+inline constexpr float kSharpAlphaFloor = 0.1f;
 float SharpAlpha(const MatrixOptions& options, size_t lights);
 inline constexpr long long kDefaultCausticPhotons = 250000;
 

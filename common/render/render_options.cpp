@@ -34,7 +34,7 @@ void ReadMatrixOptions(const OptionMap& params, uint64_t seed, MatrixOptions* op
   options->caustic_radius = float(params.GetDouble("caustic_radius", 0.02, 1e-6, 1.0));
   options->caustic_volume_radius = float(params.GetDouble("caustic_volume_radius", 0.01, 1e-6, 1.0));
   options->sharp_roughness =
-      float(params.GetOptionalDouble("sharp_roughness", 0, 1, "min(0.3, sqrt(20 / lights))").value_or(-1));
+      float(params.GetOptionalDouble("sharp_roughness", 0, 1, "sqrt(20 / lights), between 0.1 and 0.3").value_or(-1));
   options->sharp_samples = int(params.GetInt("sharp_samples", 8, 1, 256));
   options->splits = int(params.GetInt("splits", kDefaultSplits, 0, kMaxSplits));
 }
