@@ -16,25 +16,34 @@ source "$root/scripts/report-lib.sh"
 report_begin
 truth_s=${LIGHTFARM_TRUTH_SECONDS:-600}
 # name:resolution ("" = the Film's)
-cases=("veach-mis:160x200" "product-shot:")
+# scene:resolution:the K to render (each also at K = 16 without shadow probes).
+cases=("veach-mis:160x200:1 4 16 64" "product-shot::1 4 16 64" "cornell-box::16")
 rows=()
 for c in "${cases[@]}"; do
-  name=${c%%:*}
-  res=${c#*:}
+  IFS=: read -r name res ks <<<"$c"
   scene="$shared/scenes/$name/scene.pbrt"
   [ -f "$scene" ] || scene="$root/scenes/$name/scene.pbrt"
   size=()
   [ -n "$res" ] && size=(--resolution "$res")
   runs="$build/default-runs/$name${res:+-$res}"
   mkdir -p "$runs"
-  if [ ! -f "$runs/truth.exr" ]; then
+  # The truth: the scene's reference.exr at its Film resolution (veach-mis's is not converged:
+  # docs/reference-accuracy.md), else path traced here.
+  truth="$runs/truth.exr" truth_json="$runs/truth.json"
+  if [ -z "$res" ] && [ "$name" != veach-mis ] && [ -f "$(dirname "$scene")/reference.exr" ]; then
+    truth="$(dirname "$scene")/reference.exr" truth_json=
+  elif [ ! -f "$truth" ]; then
     "$lf" render "$scene" --quiet "${size[@]}" --method path --seed 7 --until-noise 0.01 --time-limit "$truth_s" \
-      --out "$runs/truth.exr" --stats "$runs/truth.json"
+      --out "$truth" --stats "$truth_json"
   fi
-  for k in 1 4 16 64; do
-    echo "report-coverage: $name ${res:-(Film)} coverage=$k" >&2
-    "$lf" render "$scene" --quiet "${size[@]}" --param "coverage=$k" --out "$work/$name-$k.exr" --stats "$work/$name-$k.json"
-    rows+=("$name|${res:-Film}|$k|$work/$name-$k.json|$work/$name-$k.exr|$runs/truth.exr|$runs/truth.json")
+  for run in $ks 16:0; do
+    k=${run%%:*} shadows=1
+    [ "$run" = 16:0 ] && shadows=0
+    echo "report-coverage: $name ${res:-(Film)} coverage=$k coverage_shadows=$shadows" >&2
+    out="$work/$name-$k-$shadows"
+    "$lf" render "$scene" --quiet "${size[@]}" --param "coverage=$k" --param "coverage_shadows=$shadows" \
+      --out "$out.exr" --stats "$out.json"
+    rows+=("$name|${res:-Film}|$k|$shadows|$out.json|$out.exr|$truth|$truth_json")
   done
 done
 $py - "$root/docs/coverage.md" "$(git -C "$root" rev-parse --short HEAD)$(git -C "$root" diff --quiet || echo +uncommitted)" "$(nproc)" "${rows[@]}" <<'PY'
@@ -51,16 +60,19 @@ md = ["# Coverage paths: what antialiasing costs", "",
       f"on {cores} cores. Never edit the numbers: re-run the script.", "",
       "The default render (`lightfarm render scene.pbrt --param coverage=K`, everything else default) for K camera paths "
       "per receiver sample, grouped by the surface they end on (docs/rendering.md, \"Coverage\"; K = 1 is one path per "
-      "sample; the default is 16). The default against `path` at equal time: docs/product-shots-vs-path.md. `receivers/px`: shading points per pixel. Errors "
+      "sample; the default is 16). `shadows`: the groups also part paths whose points see different emitters "
+      "(`--param coverage_shadows`, default 1: shadow probes); K = 16 is shown without them too. The default against "
+      "`path` at equal time: docs/product-shots-vs-path.md. `receivers/px`: shading points per pixel; `receivers phase`: "
+      "the time of the receivers phase (camera paths, coverage and probes included, stats `time.phases.receivers`). Errors "
       "against the truth: rel_l1 over all pixels, then its part on *edge* pixels (the truth's 3x3 neighbourhood spans "
       "more than 4x: geometric edges and the rims of highlights) and on the rest, both as shares of the whole image's "
       "‖truth‖₁, so they add up to rel_l1. `specks`: lit truth pixels below 0.3x the smallest or above 3x the largest "
       "truth value in their 3x3 neighbourhood (`lightfarm compare`). One run each on a shared machine.", "",
-      "| scene | resolution | K | time | receivers/px | rel_l1 | edges | rest | rel_l2 | specks |",
-      "|---|---|---|---|---|---|---|---|---|---|"]
+      "| scene | resolution | K | shadows | time | receivers phase | receivers/px | rel_l1 | edges | rest | rel_l2 | specks |",
+      "|---|---|---|---|---|---|---|---|---|---|---|---|"]
 truths = {}
 for row in sys.argv[4:]:
-    name, res, k, stats, image, truth, truth_json = row.split("|")
+    name, res, k, shadows, stats, image, truth, truth_json = row.split("|")
     d = json.load(open(stats))
     t = read(truth); img = read(image)
     lum = t.mean(2)
@@ -70,10 +82,14 @@ for row in sys.argv[4:]:
     px = t.shape[0] * t.shape[1]
     rp = f"{d['receivers']['points'] / px:.3f}"
     truths[name] = truth_json
-    md.append(f"| {name} | {res} | {k} | {d['time']['total_s']:.1f} s | {rp} | {err.sum() / norm:.4f} | "
+    md.append(f"| {name} | {res} | {k} | {'on' if shadows == '1' else 'off'} | {d['time']['total_s']:.1f} s | "
+              f"{d['time']['phases']['receivers']:.1f} s | {rp} | {err.sum() / norm:.4f} | "
               f"{err[edge].sum() / norm:.4f} | {err[~edge].sum() / norm:.4f} | {l2:.4f} | SPECKS:{image}:{truth} |")
-md += ["", "Truths (`path`, progressive):", ""]
+md += ["", "Truths (`path`, progressive, unless the scene's reference.exr):", ""]
 for name, tj in truths.items():
+    if not tj:
+        md.append(f"- {name}: reference.exr.")
+        continue
     t = json.load(open(tj))
     md.append(f"- {name}: {t['passes']} passes x {t['spp']} spp in {sum(t['pass_times_s']):.0f} s; relative standard "
               f"error of its 90th-percentile pixel {t['noise']['p90_rel_stderr']:.3f}.")

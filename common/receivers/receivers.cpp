@@ -707,6 +707,66 @@ bool SameSurface(const ShadingPoint& a, const ShadingPoint& b) {
   return std::abs(Dot(d, a.ng)) <= step && std::abs(Dot(d, b.ng)) <= step;
 }
 
+// Shadow probes of the coverage groups (ReceiverOptions::coverage_shadows): a point on each of
+// the kShadowProbes most powerful emitters (an area emitter's centroid, a point light, a distant
+// light's direction). Two coverage paths whose points see different probes are not grouped, so a
+// pixel across a shadow's edge keeps a receiver on each side, as across a geometric edge. What a
+// point sees is a function of the point alone, so the groups stay a function of the set of paths
+// and only the variance depends on them (MergeCoverage).
+class ShadowProbes {
+ public:
+  static constexpr size_t kShadowProbes = 4;
+
+  explicit ShadowProbes(const Scene& scene) : scene_(scene) {
+    std::vector<std::pair<float, Probe>> all;
+    for (const AreaEmitter& e : scene.area_emitters()) {
+      // The centroid of 16 stratified points; a sphere's is inside it, so a ray that reaches the
+      // emitter's own shape counts as seeing it.
+      Vec3 c{0, 0, 0};
+      for (int i = 0; i < 16; ++i) {
+        Vec3 p, n;
+        scene.SampleAreaEmitter(e, {(float(i % 4) + 0.5f) / 4.f, (float(i / 4) + 0.5f) / 4.f}, &p, &n);
+        c = c + p * (1.f / 16.f);
+      }
+      all.push_back({e.Power().Luminance(), Probe{c, {0, 0, 0}, int(e.shape)}});
+    }
+    for (const PointEmitter& e : scene.point_emitters())
+      all.push_back({4 * kPi * e.intensity.Luminance(), Probe{e.position, {0, 0, 0}, -1}});
+    const float r = scene.bounds().Radius();
+    for (const DistantEmitter& e : scene.distant_emitters())
+      all.push_back({kPi * r * r * e.L.Luminance(), Probe{{0, 0, 0}, -e.direction, -1, true}});
+    std::stable_sort(all.begin(), all.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
+    for (const auto& [power, probe] : all)
+      if (power > 0 && probes_.size() < kShadowProbes) probes_.push_back(probe);
+  }
+  bool empty() const { return probes_.empty(); }
+
+  // Bit i: probe i lies on the side the point is seen from, and nothing opaque is in between.
+  uint32_t Seen(const ShadingPoint& p) const {
+    uint32_t seen = 0;
+    for (size_t i = 0; i < probes_.size(); ++i) {
+      const Probe& probe = probes_[i];
+      Vec3 w = probe.distant ? probe.direction : probe.p - p.p;
+      const float d = Length(w);
+      if (!(d > 0) || Dot(w, p.ng) * Dot(p.wo, p.ng) <= 0) continue;
+      w = w / d;
+      Ray ray{OffsetRayOrigin(p.p, p.ng, w), w, probe.distant ? kInfinity : d * (1 - 1e-3f)};
+      SurfaceHit hit;
+      if (!scene_.Intersect(ray, &hit, kMaskOpaque) || int(hit.shape) == probe.shape) seen |= 1u << i;
+    }
+    return seen;
+  }
+
+ private:
+  struct Probe {
+    Vec3 p, direction;  // a point on the emitter; a distant light's direction towards it
+    int shape = -1;     // an area emitter's shape: reaching it is seeing the probe
+    bool distant = false;
+  };
+  const Scene& scene_;
+  std::vector<Probe> probes_;
+};
+
 // One receiver sample from its K coverage paths (ReceiverOptions::coverage), of equal positive
 // filter weights w_j (FilterSampler: |w| is the same for every sample). Path 0 is the sample's own
 // film position, the others the pixel-sized lattice shifted by it (CoverageLattice), so given the
@@ -723,7 +783,10 @@ struct CoveragePath {
   float weight = 0;
   RGB emitted;
   std::vector<ShadingPoint> points;
+  std::vector<uint32_t> seen;  // ShadowProbes::Seen of each point; empty without probes
 };
+
+uint32_t SeenOf(const CoveragePath& path, size_t slot) { return slot < path.seen.size() ? path.seen[slot] : 0; }
 
 void MergeCoverage(std::vector<CoveragePath>& paths, Rng& rng, CameraSample* cs,
                    std::vector<ShadingPoint>* points) {
@@ -759,7 +822,8 @@ void MergeCoverage(std::vector<CoveragePath>& paths, Rng& rng, CameraSample* cs,
     std::iota(part.begin(), part.end(), size_t(0));
     for (size_t i = 0; i < k; ++i)
       for (size_t j = i + 1; j < k && has(i); ++j)
-        if (has(j) && find(i) != find(j) && SameSurface(paths[i].points[slot], paths[j].points[slot]))
+        if (has(j) && find(i) != find(j) && SameSurface(paths[i].points[slot], paths[j].points[slot]) &&
+            SeenOf(paths[i], slot) == SeenOf(paths[j], slot))
           part[find(j)] = find(i);
     groups.clear();
     std::fill(group_of.begin(), group_of.end(), SIZE_MAX);  // by root
@@ -990,6 +1054,11 @@ ReceiverSet GenerateReceivers(const Scene& scene, const FilterSampler& filter,
   // Coverage paths share the sample's emitter samples at sharp vertices.
   const int coverage = opt.coverage > 1 && opt.segments_per_ray < 0 && filter.positive() ? opt.coverage : 1;
   const std::vector<Vec2> lattice = CoverageLattice(coverage);
+  std::optional<ShadowProbes> probes;
+  if (coverage > 1 && opt.coverage_shadows) {
+    probes.emplace(scene);
+    if (probes->empty()) probes.reset();
+  }
   CameraPathOptions coverage_paths = receiver_paths;
   coverage_paths.sharp_samples = std::max(1, opt.sharp_samples / coverage);
   CameraPathOptions camera_only = receiver_paths;
@@ -1036,6 +1105,8 @@ ReceiverSet GenerateReceivers(const Scene& scene, const FilterSampler& filter,
             PathEnd end = TraceCameraPath(scene, coverage_paths, ray, rng);
             ways[size_t(j)].emitted = end.emitted;
             ways[size_t(j)].points = std::move(end.points);
+            if (probes)
+              for (const ShadingPoint& point : ways[size_t(j)].points) ways[size_t(j)].seen.push_back(probes->Seen(point));
             tally(end);
           }
           MergeCoverage(ways, rng, &cs, &points[index]);

@@ -130,6 +130,10 @@ struct ReceiverOptions {
   // expectation). 1: one path per sample. Only for filters without negative lobes and without
   // eye segments (media rows keep one path per sample).
   int coverage = 1;
+  // Whether the coverage groups also part paths whose points see different emitters (docs/
+  // rendering.md, "Coverage": shadow probes), so a pixel across a shadow's edge keeps a receiver
+  // on each side as it does across a geometric edge. Only the variance depends on it.
+  bool coverage_shadows = true;
   // Coverage of media rows (docs/rendering.md, "Coverage of eye segments"): with one segment per
   // medium piece (segments_per_ray 0) and a positive filter, a receiver sample's first medium
   // piece (reached through interfaces only) becomes one row for this many film positions (its

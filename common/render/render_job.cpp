@@ -190,6 +190,7 @@ Plan BuildPlanWith(const std::function<const SceneDescription&()>& scene_desc, c
   ropt.sharp_samples = plan.matrix_options.sharp_samples;
   ropt.splits = plan.matrix_options.splits;
   ropt.coverage = method_options.coverage;
+  ropt.coverage_shadows = method_options.coverage_shadows;
   // Refined slices split segments at their boundaries, which a row of several rays' pieces has
   // no single place for: refinement keeps one ray per row.
   ropt.segment_coverage = options.segment_slicing.refine ? 1 : method_options.segment_coverage;

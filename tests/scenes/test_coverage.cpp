@@ -131,6 +131,59 @@ TEST(Coverage, TheDefaultIsUnbiasedWhereShadingVaries) {
   EXPECT_NEAR(sum_cov / sum_ref, 1.0, 0.003);
 }
 
+// A shadow's edge inside one surface (ReceiverOptions::coverage_shadows): a wall under a distant
+// light, and out of the camera's view a quad whose slanted edge casts a hard shadow across it.
+// Every coverage path ends on the wall, so without shadow probes each pixel is one group and
+// renders as with one path; with them a pixel across the edge keeps a lit and a shadowed
+// receiver, and comes close to many samples per pixel, at about one receiver per pixel.
+const char* kShadowEdge = R"(
+Integrator "path" "integer maxdepth" [ 1 ]
+Film "rgb" "integer xresolution" [ 32 ] "integer yresolution" [ 32 ] "string filename" [ "shadow.exr" ]
+PixelFilter "box"
+LookAt 0 0 6  0 0 0  0 1 0
+Camera "perspective" "float fov" [ 30 ]
+WorldBegin
+LightSource "distant" "point3 from" [ 4 0 4 ] "point3 to" [ 0 0 0 ] "rgb L" [ 3 3 3 ]
+Material "diffuse" "rgb reflectance" [ 0.8 0.8 0.8 ]
+Shape "trianglemesh" "integer indices" [ 0 1 2 0 2 3 ]
+  "point3 P" [ -10 -10 -1  10 -10 -1  10 10 -1  -10 10 -1 ]
+Shape "trianglemesh" "integer indices" [ 0 1 2 0 2 3 ]
+  "point3 P" [ 1.9 -4 3  9 -4 3  9 4 3  3.1 4 3 ]
+)";
+
+TEST(Coverage, ShadowProbesAntialiasShadowEdgesOnOneSurface) {
+  TempDir dir;
+  const std::string path = dir.Write("shadow.pbrt", kShadowEdge);
+  const RenderOutput probes = RenderBrute(path, 1, {"coverage=16"});
+  const RenderOutput off = RenderBrute(path, 1, {"coverage=16", "coverage_shadows=0"});
+  const RenderOutput single = RenderBrute(path, 1, {"coverage=1"});
+  const Image truth = RenderBrute(path, 1024, {"coverage=1"}).image;
+  int edge_pixels = 0;
+  double err_probes = 0, err_off = 0, err_single = 0, sum_probes = 0, sum_truth = 0;
+  for (int y = 0; y < truth.height; ++y)
+    for (int x = 0; x < truth.width; ++x) {
+      const double t = Lum(truth.at(x, y)), one = Lum(single.image.at(x, y));
+      sum_probes += Lum(probes.image.at(x, y));
+      sum_truth += t;
+      if (std::abs(one - t) <= 1e-3 * std::max(t, 1e-3)) continue;
+      ++edge_pixels;
+      err_probes += std::abs(Lum(probes.image.at(x, y)) - t);
+      err_off += std::abs(Lum(off.image.at(x, y)) - t);
+      err_single += std::abs(one - t);
+    }
+  std::printf("shadow-edge pixels %d: mean error %.4f with probes, %.4f without, %.4f one path\n", edge_pixels,
+              err_probes / edge_pixels, err_off / edge_pixels, err_single / edge_pixels);
+  EXPECT_GT(edge_pixels, 15);
+  EXPECT_LT(err_probes, 0.3 * err_single);
+  EXPECT_NEAR(err_off, err_single, 1e-6 * err_single);  // one group: the sample's own receiver
+  EXPECT_NEAR(sum_probes / sum_truth, 1.0, 0.01);
+  const double pixels = double(truth.width) * truth.height;
+  EXPECT_EQ(off.stats["receivers"]["points"].get<double>(), pixels);
+  const double points = probes.stats["receivers"]["points"].get<double>();
+  EXPECT_GT(points, pixels);
+  EXPECT_LE(points, pixels + edge_pixels);
+}
+
 // Coverage of media rows (docs/rendering.md, "Coverage of eye segments"): a sample's first
 // medium piece becomes one row for K film positions, each element sample integrating along one
 // of their pieces. A sphere of fog under a distant light along the view axis, single scattering
