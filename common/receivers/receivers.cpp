@@ -32,6 +32,7 @@ struct PathEnd {
   std::vector<ShadingPoint> points;
   int specular_bounces = 0;
   int split_vertices = 0;
+  int near_sharp_vertices = 0;
   bool escaped = false;
   size_t transmittance_evals = 0;
   size_t media_direct_samples = 0;
@@ -98,7 +99,23 @@ struct CameraPathOptions {
   int splits = 0;
   // Whether the path's receivers are kept (false for paths that only collect camera-side light).
   bool keep_points = true;
+  // The near-field rule's distance scale D (ReceiverOptions::near_sharp_scale); 0: off.
+  float near_sharp_scale = 0;
 };
+
+// Whether the vertex at `hit`, seen from wo, takes its material's near-field sharp twin
+// (docs/rendering.md, "Sharp lobes", *Near field*): its mirror direction reaches a surface that
+// is not an emitter within D / α, where its lobe's footprint holds too few virtual lights. A
+// function of the vertex alone, so either choice leaves the estimate unbiased.
+bool TakesNearSharpTwin(const Scene& scene, const SurfaceHit& hit, Vec3 wo, const Material& m, float scale) {
+  const float alpha = std::max(m.alpha_x, m.alpha_y);
+  const float cos_o = Dot(wo, hit.ns);
+  const Vec3 r = hit.ns * (2 * cos_o) - wo;
+  if (!(alpha > 0) || Dot(r, hit.ng) * Dot(wo, hit.ng) <= 0) return false;
+  const Ray ray{OffsetRayOrigin(hit.p, hit.ng, r), r, scale / alpha};
+  SurfaceHit near;
+  return scene.Intersect(ray, &near, kMaskOpaque) && scene.shapes()[near.shape].area_emitter < 0;
+}
 
 // A camera ray's piece [0, tmax] inside one medium, tabulated (an unbounded piece, a ray leaving
 // into an endless medium, is cut where any light left along it is negligible or, for an empty
@@ -225,7 +242,15 @@ PathEnd TraceCameraPath(const Scene& scene, const CameraPathOptions& opt, Ray ra
         }
       }
       const Shape& shape = scene.shapes()[hit.shape];
-      const Material& m = scene.materials()[shape.material];
+      int material = shape.material;
+      if (opt.near_sharp_scale > 0) {
+        const int twin = scene.near_sharp_twin(material);
+        if (twin >= 0 && TakesNearSharpTwin(scene, hit, wo, scene.materials()[size_t(material)], opt.near_sharp_scale)) {
+          material = twin;
+          ++end.near_sharp_vertices;
+        }
+      }
+      const Material& m = scene.materials()[size_t(material)];
       const uint32_t flags = MaterialFlags(m);
       if (flags == 0) {  // interface: not a surface, only the medium changes
         if (++b.passthrough > 64) break;
@@ -245,7 +270,7 @@ PathEnd TraceCameraPath(const Scene& scene, const CameraPathOptions& opt, Ray ra
         point.ns = hit.ns;
         point.wo = wo;
         point.throughput = throughput;
-        point.material = uint32_t(shape.material);
+        point.material = uint32_t(material);
         point.depth = uint8_t(std::min(b.depth, 255));
         point.medium_out = int16_t(shape.medium_transition ? shape.outside_medium : b.medium);
         point.medium_in = int16_t(shape.medium_transition ? shape.inside_medium : b.medium);
@@ -1051,6 +1076,7 @@ ReceiverSet GenerateReceivers(const Scene& scene, const FilterSampler& filter,
   receiver_paths.media_samples = opt.media_direct_samples;
   receiver_paths.segments_per_ray = opt.segments_per_ray;
   receiver_paths.splits = opt.splits;
+  receiver_paths.near_sharp_scale = opt.near_sharp_scale;
   // Coverage paths share the sample's emitter samples at sharp vertices.
   const int coverage = opt.coverage > 1 && opt.segments_per_ray < 0 && filter.positive() ? opt.coverage : 1;
   const std::vector<Vec2> lattice = CoverageLattice(coverage);
@@ -1078,6 +1104,7 @@ ReceiverSet GenerateReceivers(const Scene& scene, const FilterSampler& filter,
       st.transmittance_evals += end.transmittance_evals;
       st.media_direct_samples += end.media_direct_samples;
       st.split_vertices += size_t(end.split_vertices);
+      st.near_sharp_vertices += size_t(end.near_sharp_vertices);
     };
     for (int x = 0; x < set.width; ++x) {
       uint32_t pixel = uint32_t(y * set.width + x);
@@ -1208,6 +1235,7 @@ ReceiverSet GenerateReceivers(const Scene& scene, const FilterSampler& filter,
     set.stats.camera_active_pixels += st.camera_active_pixels;
     set.stats.media_direct_samples += st.media_direct_samples;
     set.stats.split_vertices += st.split_vertices;
+    set.stats.near_sharp_vertices += st.near_sharp_vertices;
     set.stats.coverage_paths += st.coverage_paths;
   }
   set.stats.segment_coverage = std::max<size_t>(set.stats.segment_coverage, 1);

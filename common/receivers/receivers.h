@@ -69,6 +69,7 @@ struct ReceiverStats {
   size_t camera_active_pixels = 0; // pixels that got camera_paths more paths
   size_t media_direct_samples = 0; // samples of the emitters' single scattering (media_direct_samples)
   size_t split_vertices = 0;       // receiver-path vertices that split (ReceiverOptions::splits)
+  size_t near_sharp_vertices = 0;  // receiver-path vertices that took their near-field sharp twin
   size_t coverage_paths = 0;       // camera paths traced for receiver samples beyond one per sample
   size_t segment_coverage = 1;     // film positions per media row (ReceiverOptions::segment_coverage)
 };
@@ -120,6 +121,10 @@ struct ReceiverOptions {
   // (a sample that follows a coat has no receiver on the base; one reflected by glass sees only
   // the reflection).
   int splits = 0;
+  // The near-field sharp rule's distance scale D (NearSharpScale, lighting_matrix.h): a vertex on
+  // a material with a near-field sharp twin (Scene::SetSharpAlpha) whose mirror direction meets a
+  // non-emitting surface within D / α takes the twin. 0: never.
+  float near_sharp_scale = 0;
   // Coverage paths per receiver sample (docs/rendering.md, "Coverage"): the sample traces this
   // many camera paths, each with its own film position, and groups them by the surfaces they end
   // on (material, depth, normal within ~18°, no step off the plane); each group keeps the

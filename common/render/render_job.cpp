@@ -91,7 +91,9 @@ void ChooseMethod(const RenderSettings& settings, OptionMap* params, Plan* plan)
 // The sharp-lobe split, before any BSDF is read: matrix methods only (a film method traces the
 // scene's own BSDFs).
 void ApplySharpSplit(const RenderSettings& settings, Plan* plan) {
-  if (!plan->method->renders_film()) plan->scene->SetSharpAlpha(SharpAlpha(plan->matrix_options, settings.lights));
+  if (plan->method->renders_film()) return;
+  plan->scene->SetSharpAlpha(SharpAlpha(plan->matrix_options, settings.lights),
+                             plan->matrix_options.near_sharp ? kNearSharpMaxAlpha : 0.f);
 }
 
 // Camera-side supersampling by default only when a camera path can collect something by itself:
@@ -99,7 +101,7 @@ void ApplySharpSplit(const RenderSettings& settings, Plan* plan) {
 // vertex. Then the pixels the pilot marks (a visible light's edge, a light's reflection in a
 // sharp lobe) get 256 more camera paths: a few rays each, against the hundreds to thousands of
 // shadow rays of one receiver's gather. docs/default-vs-path.md measures the effect.
-// Materials with a lobe the sharp split made sharp.
+// Materials with a lobe the sharp split made sharp, near-field twins included.
 size_t SharpMaterials(const Scene& scene) {
   size_t n = 0;
   for (const Material& m : scene.materials()) n += HasSharpLobe(m);
@@ -189,6 +191,8 @@ Plan BuildPlanWith(const std::function<const SceneDescription&()>& scene_desc, c
   ropt.media_direct_samples = media_rows ? plan.matrix_options.media_direct_samples : 0;
   ropt.sharp_samples = plan.matrix_options.sharp_samples;
   ropt.splits = plan.matrix_options.splits;
+  ropt.near_sharp_scale =
+      plan.matrix_options.near_sharp ? NearSharpScale(scene.ReflectingArea(), settings.lights) : 0.f;
   ropt.coverage = method_options.coverage;
   ropt.coverage_shadows = method_options.coverage_shadows;
   // Refined slices split segments at their boundaries, which a row of several rays' pieces has
@@ -418,6 +422,7 @@ nlohmann::json MakeStats(const Plan& plan, const RenderSettings& settings,
                     {"media_direct_samples", plan.receivers->stats.media_direct_samples},
                     {"specular_bounces", plan.receivers->stats.specular_bounces},
                     {"split_vertices", plan.receivers->stats.split_vertices},
+                    {"near_sharp_vertices", plan.receivers->stats.near_sharp_vertices},
                     {"coverage_paths", plan.receivers->stats.coverage_paths},
                     {"segment_coverage", plan.receivers->stats.segment_coverage},
                     {"segment_pieces", plan.receivers->segment_pieces.size()},
@@ -468,7 +473,11 @@ nlohmann::json MakeStats(const Plan& plan, const RenderSettings& settings,
   // on light paths (or --param caustic_photons asks for them).
   // The sharp-lobe split (docs/rendering.md): its threshold and the materials it made sharp.
   s["sharp"] = {{"alpha", plan.method->renders_film() ? 0.0 : double(SharpAlpha(plan.matrix_options, settings.lights))},
-                {"materials", SharpMaterials(*plan.scene)}};
+                {"materials", SharpMaterials(*plan.scene) - plan.scene->near_sharp_twins()},
+                {"near_twins", plan.scene->near_sharp_twins()},
+                {"near_scale", plan.scene->near_sharp_twins() > 0
+                                   ? double(NearSharpScale(plan.scene->ReflectingArea(), settings.lights))
+                                   : 0.0}};
   s["caustics"] = {{"photons", plan.matrix->caustic_photon_target()},
                    {"photons_used", counters.caustic_photons_used},
                    {"energy_fraction", total_lum > 0 ? counters.caustic_gathered / total_lum : 0.0}};

@@ -35,6 +35,7 @@ void ReadMatrixOptions(const OptionMap& params, uint64_t seed, MatrixOptions* op
   options->caustic_volume_radius = float(params.GetDouble("caustic_volume_radius", 0.01, 1e-6, 1.0));
   options->sharp_roughness =
       float(params.GetOptionalDouble("sharp_roughness", 0, 1, "sqrt(20 / lights), between 0.1 and 0.3").value_or(-1));
+  options->near_sharp = params.GetInt("near_sharp", 1, 0, 1) != 0;
   options->sharp_samples = int(params.GetInt("sharp_samples", 8, 1, 256));
   options->splits = int(params.GetInt("splits", kDefaultSplits, 0, kMaxSplits));
 }

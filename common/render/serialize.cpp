@@ -219,7 +219,7 @@ Bytes SerializeReceiverSet(const ReceiverSet& set) {
   for (size_t v : {set.stats.camera_rays, set.stats.specular_bounces, set.stats.escaped,
                    set.stats.nonfinite_rays, set.stats.camera_paths, set.stats.camera_pilot_paths,
                    set.stats.camera_active_pixels, set.stats.media_direct_samples, set.stats.split_vertices,
-                   set.stats.coverage_paths, set.stats.segment_coverage})
+                   set.stats.near_sharp_vertices, set.stats.coverage_paths, set.stats.segment_coverage})
     w.U64(v);
   w.U64(set.samples.size());
   for (const CameraSample& c : set.samples) {
@@ -271,7 +271,7 @@ ReceiverSet DeserializeReceiverSet(ByteView bytes) {
   for (size_t* v : {&set.stats.camera_rays, &set.stats.specular_bounces, &set.stats.escaped,
                     &set.stats.nonfinite_rays, &set.stats.camera_paths, &set.stats.camera_pilot_paths,
                     &set.stats.camera_active_pixels, &set.stats.media_direct_samples, &set.stats.split_vertices,
-                    &set.stats.coverage_paths, &set.stats.segment_coverage})
+                    &set.stats.near_sharp_vertices, &set.stats.coverage_paths, &set.stats.segment_coverage})
     *v = size_t(r.U64());
   const uint64_t pixels = uint64_t(width) * height;
   set.samples.resize(r.Count(kSampleBytes));

@@ -34,7 +34,7 @@ using ByteView = std::span<const uint8_t>;
 // 8: VRL flights and camera-side single-scattering samples (light set and receiver stats);
 // 9: several shading points per camera sample (split mixed vertices); 10: coverage paths
 // (receiver stats)
-inline constexpr uint16_t kSerializeVersion = 11;
+inline constexpr uint16_t kSerializeVersion = 12;
 
 Bytes SerializeLightSet(const LightSet& lights);
 LightSet DeserializeLightSet(ByteView bytes);

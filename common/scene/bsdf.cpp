@@ -665,11 +665,16 @@ float RoughnessToAlpha(float roughness) { return std::sqrt(std::max(0.f, roughne
 
 bool ActsAsDelta(const Material& m) { return IsSmooth(m) || IsSharp(m); }
 
-bool HasSharpLobe(const Material& m) {
-  const bool microfacet = m.type == MaterialType::kConductor || m.type == MaterialType::kCoatedDiffuse ||
-                          (m.type == MaterialType::kDielectric && !DielectricIsPassThrough(m));
-  return microfacet && IsSharp(m);
+namespace {
+bool HasMicrofacetLobe(const Material& m) {
+  return m.type == MaterialType::kConductor || m.type == MaterialType::kCoatedDiffuse ||
+         (m.type == MaterialType::kDielectric && !DielectricIsPassThrough(m));
 }
+}  // namespace
+
+bool HasSharpLobe(const Material& m) { return HasMicrofacetLobe(m) && IsSharp(m); }
+
+bool HasRoughMicrofacetLobe(const Material& m) { return HasMicrofacetLobe(m) && !IsSmooth(m) && !IsSharp(m); }
 
 RGB EvalSharpLobe(const Material& m, Vec3 wo, Vec3 wi, TransportMode mode) {
   if (!HasSharpLobe(m) || wo.z == 0 || wi.z == 0) return RGB(0.f);

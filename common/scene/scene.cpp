@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <map>
 #include <numeric>
 
@@ -550,6 +551,42 @@ RGB Scene::EnvironmentRadiance(Vec3 d) const {
   RGB L(0.f);
   for (const InfiniteEmitter& e : infinite_emitters_) L += e.Le(d);
   return L;
+}
+
+void Scene::SetSharpAlpha(float alpha, float near_max_alpha) {
+  if (near_twins_.empty()) own_materials_ = materials_.size();
+  materials_.resize(own_materials_);
+  near_twins_.assign(own_materials_, -1);
+  for (Material& m : materials_) m.sharp_alpha = alpha;
+  if (!(near_max_alpha > 0)) return;
+  for (size_t i = 0; i < own_materials_; ++i) {
+    const Material& m = materials_[i];
+    if (!HasRoughMicrofacetLobe(m) || std::max(m.alpha_x, m.alpha_y) > near_max_alpha) continue;
+    Material twin = m;
+    twin.sharp_alpha = std::numeric_limits<float>::infinity();
+    twin.name += " (near-field sharp)";
+    near_twins_[i] = int(materials_.size());
+    materials_.push_back(std::move(twin));
+  }
+}
+
+double Scene::ReflectingArea() const {
+  double area = 0;
+  for (const Shape& sh : shapes_) {
+    if (sh.area_emitter >= 0) continue;
+    const uint32_t flags = MaterialFlags(materials_[size_t(sh.material)]);
+    if (flags == 0 || IsPurelySpecular(flags)) continue;
+    if (sh.kind == ShapeKind::kSphere) {
+      area += 4 * double(kPi) * double(sh.radius) * double(sh.radius);
+      continue;
+    }
+    for (size_t t = 0; t + 2 < sh.indices.size(); t += 3) {
+      const Vec3 a = sh.positions[sh.indices[t]], b = sh.positions[sh.indices[t + 1]],
+                 c = sh.positions[sh.indices[t + 2]];
+      area += 0.5 * double(Length(Cross(b - a, c - a)));
+    }
+  }
+  return area;
 }
 
 void Scene::SampleAreaEmitter(const AreaEmitter& e, Vec2 u, Vec3* p, Vec3* n) const {

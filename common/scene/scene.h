@@ -85,9 +85,20 @@ class Scene {
   const std::vector<Material>& materials() const { return materials_; }
   // The many-light split of every material's lobes (Material::sharp_alpha): set once by the
   // plan, before receivers or lights are generated, and identically on every worker.
-  void SetSharpAlpha(float alpha) {
-    for (Material& m : materials_) m.sharp_alpha = alpha;
+  // With near_max_alpha > 0 it also adds the near-field sharp twins: for each material whose
+  // microfacet lobe stays rough under alpha but is no rougher than near_max_alpha, a copy whose
+  // lobe is sharp, appended after the scene's own materials. Receiver paths use a twin at a
+  // vertex whose reflection lands close by (docs/rendering.md, "Sharp lobes", *Near field*); the
+  // lights never do. Replaces the twins of an earlier call.
+  void SetSharpAlpha(float alpha, float near_max_alpha = 0);
+  // How many near-field sharp twins the last SetSharpAlpha added.
+  size_t near_sharp_twins() const { return near_twins_.empty() ? 0 : materials_.size() - own_materials_; }
+  // The material's near-field sharp twin, -1 if it has none.
+  int near_sharp_twin(int material) const {
+    return material >= 0 && size_t(material) < near_twins_.size() ? near_twins_[size_t(material)] : -1;
   }
+  // Area of the surfaces a virtual light can be left on: not emitting, with a diffuse or glossy lobe.
+  double ReflectingArea() const;
   const std::vector<AreaEmitter>& area_emitters() const { return area_emitters_; }
   const std::vector<PointEmitter>& point_emitters() const { return point_emitters_; }
   const std::vector<DistantEmitter>& distant_emitters() const { return distant_emitters_; }
@@ -117,6 +128,8 @@ class Scene {
   RTCScene rtc_scene_ = nullptr;
   std::vector<Shape> shapes_;
   std::vector<Material> materials_;
+  size_t own_materials_ = 0;       // materials_ beyond this are near-field sharp twins
+  std::vector<int> near_twins_;    // per own material: its twin's index, or -1
   std::vector<AreaEmitter> area_emitters_;
   std::vector<PointEmitter> point_emitters_;
   std::vector<DistantEmitter> distant_emitters_;
