@@ -92,8 +92,9 @@ void ChooseMethod(const RenderSettings& settings, OptionMap* params, Plan* plan)
 // scene's own BSDFs).
 void ApplySharpSplit(const RenderSettings& settings, Plan* plan) {
   if (plan->method->renders_film()) return;
-  plan->scene->SetSharpAlpha(SharpAlpha(plan->matrix_options, settings.lights),
-                             plan->matrix_options.near_sharp ? kNearSharpMaxAlpha : 0.f);
+  // The near field is part of the split: sharp_roughness=0 turns both off.
+  const float alpha = SharpAlpha(plan->matrix_options, settings.lights);
+  plan->scene->SetSharpAlpha(alpha, plan->matrix_options.near_sharp && alpha > 0 ? kNearSharpMaxAlpha : 0.f);
 }
 
 // Camera-side supersampling by default only when a camera path can collect something by itself:
@@ -192,7 +193,7 @@ Plan BuildPlanWith(const std::function<const SceneDescription&()>& scene_desc, c
   ropt.sharp_samples = plan.matrix_options.sharp_samples;
   ropt.splits = plan.matrix_options.splits;
   ropt.near_sharp_scale =
-      plan.matrix_options.near_sharp ? NearSharpScale(scene.ReflectingArea(), settings.lights) : 0.f;
+      scene.near_sharp_twins() > 0 ? NearSharpScale(scene.ReflectingArea(), settings.lights) : 0.f;
   ropt.coverage = method_options.coverage;
   ropt.coverage_shadows = method_options.coverage_shadows;
   // Refined slices split segments at their boundaries, which a row of several rays' pieces has
