@@ -36,9 +36,9 @@ for c in "${cases[@]}"; do
     "$lf" render "$scene" --quiet "${size[@]}" --method path --seed 7 --until-noise 0.01 --time-limit "$truth_s" \
       --out "$truth" --stats "$truth_json"
   fi
-  for run in $ks 16:0; do
-    k=${run%%:*} shadows=1
-    [ "$run" = 16:0 ] && shadows=0
+  for run in $ks 16:1 16:0; do
+    k=${run%%:*} shadows=2
+    case $run in *:*) shadows=${run#*:} ;; esac
     echo "report-coverage: $name ${res:-(Film)} coverage=$k coverage_shadows=$shadows" >&2
     out="$work/$name-$k-$shadows"
     "$lf" render "$scene" --quiet "${size[@]}" --param "coverage=$k" --param "coverage_shadows=$shadows" \
@@ -61,7 +61,8 @@ md = ["# Coverage paths: what antialiasing costs", "",
       "The default render (`lightfarm render scene.pbrt --param coverage=K`, everything else default) for K camera paths "
       "per receiver sample, grouped by the surface they end on (docs/rendering.md, \"Coverage\"; K = 1 is one path per "
       "sample; the default is 16). `shadows`: the groups also part paths whose points see different emitters "
-      "(`--param coverage_shadows`, default 1: shadow probes); K = 16 is shown without them too. The default against "
+      "(`--param coverage_shadows`: 2, the default, probes each quarter of an area light; 1 only its centroid; 0 none); "
+      "K = 16 is shown with 1 and 0 too. The default against "
       "`path` at equal time: docs/product-shots-vs-path.md. `receivers/px`: shading points per pixel; `receivers phase`: "
       "the time of the receivers phase (camera paths, coverage and probes included, stats `time.phases.receivers`). Errors "
       "against the truth: rel_l1 over all pixels, then its part on *edge* pixels (the truth's 3x3 neighbourhood spans "

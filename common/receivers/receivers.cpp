@@ -732,28 +732,34 @@ bool SameSurface(const ShadingPoint& a, const ShadingPoint& b) {
   return std::abs(Dot(d, a.ng)) <= step && std::abs(Dot(d, b.ng)) <= step;
 }
 
-// Shadow probes of the coverage groups (ReceiverOptions::coverage_shadows): a point on each of
-// the kShadowProbes most powerful emitters (an area emitter's centroid, a point light, a distant
-// light's direction). Two coverage paths whose points see different probes are not grouped, so a
+// Shadow probes of the coverage groups (ReceiverOptions::coverage_shadows): the most powerful of
+// the emitters' probe points (a part of an area emitter, by its centroid, with its share of the
+// power; a point light; a distant light's direction). Two coverage paths whose points see different probes are not grouped, so a
 // pixel across a shadow's edge keeps a receiver on each side, as across a geometric edge. What a
 // point sees is a function of the point alone, so the groups stay a function of the set of paths
 // and only the variance depends on them (MergeCoverage).
 class ShadowProbes {
  public:
-  static constexpr size_t kShadowProbes = 4;
-
-  explicit ShadowProbes(const Scene& scene) : scene_(scene) {
+  // cells: an area emitter's probes are the centroids of cells × cells parts of it (of its
+  // sample domain, 1 or 2), each with its share of the power; 4 · cells² probes in all.
+  ShadowProbes(const Scene& scene, int cells) : scene_(scene) {
+    const size_t max_probes = size_t(4 * cells * cells);
     std::vector<std::pair<float, Probe>> all;
     for (const AreaEmitter& e : scene.area_emitters()) {
-      // The centroid of 16 stratified points; a sphere's is inside it, so a ray that reaches the
-      // emitter's own shape counts as seeing it.
-      Vec3 c{0, 0, 0};
+      // Each cell's probe is the centroid of its points of a 4 × 4 stratified grid, so with two
+      // cells a side a point in a penumbra sees some quarters of the light and not others. A
+      // sphere's centroids are inside it: a ray that reaches the emitter's own shape counts as
+      // seeing it.
+      const float power = e.Power().Luminance() / float(cells * cells);
+      std::vector<Vec3> c(size_t(cells * cells), Vec3{0, 0, 0});
+      const float share = float(cells * cells) / 16.f;
       for (int i = 0; i < 16; ++i) {
         Vec3 p, n;
         scene.SampleAreaEmitter(e, {(float(i % 4) + 0.5f) / 4.f, (float(i / 4) + 0.5f) / 4.f}, &p, &n);
-        c = c + p * (1.f / 16.f);
+        const int cell = (i / 4) * cells / 4 * cells + (i % 4) * cells / 4;
+        c[size_t(cell)] = c[size_t(cell)] + p * share;
       }
-      all.push_back({e.Power().Luminance(), Probe{c, {0, 0, 0}, int(e.shape)}});
+      for (const Vec3& centroid : c) all.push_back({power, Probe{centroid, {0, 0, 0}, int(e.shape)}});
     }
     for (const PointEmitter& e : scene.point_emitters())
       all.push_back({4 * kPi * e.intensity.Luminance(), Probe{e.position, {0, 0, 0}, -1}});
@@ -762,7 +768,7 @@ class ShadowProbes {
       all.push_back({kPi * r * r * e.L.Luminance(), Probe{{0, 0, 0}, -e.direction, -1, true}});
     std::stable_sort(all.begin(), all.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
     for (const auto& [power, probe] : all)
-      if (power > 0 && probes_.size() < kShadowProbes) probes_.push_back(probe);
+      if (power > 0 && probes_.size() < max_probes) probes_.push_back(probe);
   }
   bool empty() const { return probes_.empty(); }
 
@@ -1081,8 +1087,8 @@ ReceiverSet GenerateReceivers(const Scene& scene, const FilterSampler& filter,
   const int coverage = opt.coverage > 1 && opt.segments_per_ray < 0 && filter.positive() ? opt.coverage : 1;
   const std::vector<Vec2> lattice = CoverageLattice(coverage);
   std::optional<ShadowProbes> probes;
-  if (coverage > 1 && opt.coverage_shadows) {
-    probes.emplace(scene);
+  if (coverage > 1 && opt.coverage_shadows > 0) {
+    probes.emplace(scene, opt.coverage_shadows);
     if (probes->empty()) probes.reset();
   }
   CameraPathOptions coverage_paths = receiver_paths;

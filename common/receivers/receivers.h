@@ -137,8 +137,10 @@ struct ReceiverOptions {
   int coverage = 1;
   // Whether the coverage groups also part paths whose points see different emitters (docs/
   // rendering.md, "Coverage": shadow probes), so a pixel across a shadow's edge keeps a receiver
-  // on each side as it does across a geometric edge. Only the variance depends on it.
-  bool coverage_shadows = true;
+  // on each side as it does across a geometric edge: 0 no, 1 one probe per area emitter (its
+  // centroid; 4 in all), 2 one per quarter of it (16 in all), so penumbrae part too. Only the
+  // variance depends on it.
+  int coverage_shadows = 2;
   // Coverage of media rows (docs/rendering.md, "Coverage of eye segments"): with one segment per
   // medium piece (segments_per_ray 0) and a positive filter, a receiver sample's first medium
   // piece (reached through interfaces only) becomes one row for this many film positions (its

@@ -96,7 +96,7 @@ MethodRenderOptions ReadMethodRenderOptions(const OptionMap& params, const Gathe
   MethodRenderOptions o;
   if (!method.renders_film()) {
     o.coverage = int(params.GetInt("coverage", method.takes_coverage_rows() ? kDefaultCoverage : 1, 1, kMaxCoverage));
-    o.coverage_shadows = params.GetInt("coverage_shadows", 1, 0, 1) != 0;
+    o.coverage_shadows = int(params.GetInt("coverage_shadows", 2, 0, 2));
     o.segment_coverage = int(params.GetInt("segment_coverage", method.takes_coverage_rows() ? kDefaultSegmentCoverage : 1,
                                            1, kMaxCoverage));
   } else {

@@ -49,7 +49,7 @@ RenderOptions ReadRenderOptions(const OptionMap& params, uint64_t seed);
 // only for the methods they apply to, so the others reject them as unknown.
 struct MethodRenderOptions {
   int coverage = 1;
-  bool coverage_shadows = true;  // ReceiverOptions::coverage_shadows
+  int coverage_shadows = 2;  // ReceiverOptions::coverage_shadows
   int segment_coverage = 1;  // ReceiverOptions::segment_coverage
   int film_tile = 0;
   int film_pass_spp = 0;

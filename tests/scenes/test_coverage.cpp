@@ -184,6 +184,70 @@ TEST(Coverage, ShadowProbesAntialiasShadowEdgesOnOneSurface) {
   EXPECT_LE(points, pixels + edge_pixels);
 }
 
+// A penumbra inside one surface: the same wall and occluder under a small quad light, whose soft
+// shadow crosses the view. Across a penumbra a point sees part of the light; one probe at the
+// light's centroid parts a pixel only where that point's visibility changes, a probe per quarter
+// (coverage_shadows=2, the default) wherever a quarter's does, so its pixels come closer to many
+// samples per pixel.
+const char* kPenumbra = R"(
+Integrator "path" "integer maxdepth" [ 1 ]
+Film "rgb" "integer xresolution" [ 32 ] "integer yresolution" [ 32 ] "string filename" [ "penumbra.exr" ]
+PixelFilter "box"
+LookAt 0 0 6  0 0 0  0 1 0
+Camera "perspective" "float fov" [ 30 ]
+WorldBegin
+AttributeBegin
+  AreaLightSource "diffuse" "rgb L" [ 3000 3000 3000 ] "bool twosided" true
+  Material "diffuse" "rgb reflectance" [ 0 0 0 ]
+  Shape "trianglemesh" "integer indices" [ 0 1 2 0 2 3 ]
+    "point3 P" [ 6.823 -0.25 7.177  7.177 -0.25 6.823  7.177 0.25 6.823  6.823 0.25 7.177 ]
+AttributeEnd
+Material "diffuse" "rgb reflectance" [ 0.8 0.8 0.8 ]
+Shape "trianglemesh" "integer indices" [ 0 1 2 0 2 3 ]
+  "point3 P" [ -10 -10 -1  10 -10 -1  10 10 -1  -10 10 -1 ]
+Shape "trianglemesh" "integer indices" [ 0 1 2 0 2 3 ]
+  "point3 P" [ 1.9 -4 3  9 -4 3  9 4 3  3.1 4 3 ]
+)";
+
+TEST(Coverage, QuarterProbesAntialiasPenumbrae) {
+  TempDir dir;
+  const std::string path = dir.Write("penumbra.pbrt", kPenumbra);
+  double err_centroid = 0, err_quarters = 0, sum_quarters = 0, sum_truth = 0;
+  for (uint64_t seed : {1, 2, 3, 4}) {
+    RenderSettings s;
+    s.method = "brute";
+    s.lights = 64;
+    s.seed = seed;
+    const auto render = [&](int spp, std::vector<std::string> params) {
+      s.spp = spp;
+      s.params = std::move(params);
+      s.params.push_back("camera_paths=0");
+      return RenderScene(path, s).image;
+    };
+    const Image truth = render(256, {"coverage=1"});
+    const Image one = render(1, {"coverage=1"});
+    const Image centroid = render(1, {"coverage=16", "coverage_shadows=1"});
+    const Image quarters = render(1, {"coverage=16", "coverage_shadows=2"});
+    int varying = 0;
+    for (int y = 0; y < truth.height; ++y)
+      for (int x = 0; x < truth.width; ++x) {
+        const double t = Lum(truth.at(x, y)), q = Lum(quarters.at(x, y));
+        sum_quarters += q;
+        sum_truth += t;
+        // Pixels whose one path is off the many-sample mean: where the lighting varies.
+        if (std::abs(Lum(one.at(x, y)) - t) <= 1e-3 * std::max(t, 1e-3)) continue;
+        ++varying;
+        err_centroid += std::abs(Lum(centroid.at(x, y)) - t);
+        err_quarters += std::abs(q - t);
+      }
+    EXPECT_GT(varying, 40) << seed;
+  }
+  std::printf("penumbra pixels' summed error: %.3f with a probe per quarter, %.3f with one per light\n", err_quarters,
+              err_centroid);
+  EXPECT_LT(err_quarters, 0.92 * err_centroid);
+  EXPECT_NEAR(sum_quarters / sum_truth, 1.0, 0.02);
+}
+
 // Coverage of media rows (docs/rendering.md, "Coverage of eye segments"): a sample's first
 // medium piece becomes one row for K film positions, each element sample integrating along one
 // of their pieces. A sphere of fog under a distant light along the view axis, single scattering
