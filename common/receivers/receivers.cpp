@@ -732,25 +732,30 @@ bool SameSurface(const ShadingPoint& a, const ShadingPoint& b) {
   return std::abs(Dot(d, a.ng)) <= step && std::abs(Dot(d, b.ng)) <= step;
 }
 
-// Shadow probes of the coverage groups (ReceiverOptions::coverage_shadows): the most powerful of
-// the emitters' probe points (a part of an area emitter, by its centroid, with its share of the
-// power; a point light; a distant light's direction). Two coverage paths whose points see different probes are not grouped, so a
-// pixel across a shadow's edge keeps a receiver on each side, as across a geometric edge. What a
-// point sees is a function of the point alone, so the groups stay a function of the set of paths
-// and only the variance depends on them (MergeCoverage).
+// Shadow probes of the coverage groups (ReceiverOptions::coverage_shadows): points on the most
+// powerful emitters (the centroids of cells × cells parts of an area emitter; a point light; a
+// distant light's direction). Two coverage paths whose points see different probes are not
+// grouped, so a pixel across a shadow's edge, or across a line in a penumbra where a part of the
+// light goes out of view, keeps a receiver on each side, as across a geometric edge. What a point
+// sees is a function of the point alone, so the groups stay a function of the set of paths and
+// only the variance depends on them (MergeCoverage).
 class ShadowProbes {
  public:
-  // cells: an area emitter's probes are the centroids of cells × cells parts of it (of its
-  // sample domain, 1 or 2), each with its share of the power; 4 · cells² probes in all.
+  static constexpr size_t kMaxProbes = 16;
+
+  // cells (1 or 2): parts of an area emitter a side. The most powerful lights whose probes fit
+  // in 4 · cells² are probed (4 lights, or more point and distant lights).
   ShadowProbes(const Scene& scene, int cells) : scene_(scene) {
-    const size_t max_probes = size_t(4 * cells * cells);
-    std::vector<std::pair<float, Probe>> all;
+    const size_t max_probes = std::min(kMaxProbes, size_t(4 * cells * cells));
+    struct Light {
+      float power;
+      std::vector<Probe> probes;
+    };
+    std::vector<Light> lights;
     for (const AreaEmitter& e : scene.area_emitters()) {
-      // Each cell's probe is the centroid of its points of a 4 × 4 stratified grid, so with two
-      // cells a side a point in a penumbra sees some quarters of the light and not others. A
-      // sphere's centroids are inside it: a ray that reaches the emitter's own shape counts as
-      // seeing it.
-      const float power = e.Power().Luminance() / float(cells * cells);
+      // Each part's probe is the centroid of its points of a 4 × 4 stratified grid over the
+      // emitter's sample domain. A sphere's centroids are inside it: a ray that reaches the
+      // emitter's own shape counts as seeing it.
       std::vector<Vec3> c(size_t(cells * cells), Vec3{0, 0, 0});
       const float share = float(cells * cells) / 16.f;
       for (int i = 0; i < 16; ++i) {
@@ -759,32 +764,55 @@ class ShadowProbes {
         const int cell = (i / 4) * cells / 4 * cells + (i % 4) * cells / 4;
         c[size_t(cell)] = c[size_t(cell)] + p * share;
       }
-      for (const Vec3& centroid : c) all.push_back({power, Probe{centroid, {0, 0, 0}, int(e.shape)}});
+      Light light{e.Power().Luminance(), {}};
+      const bool sphere = scene.shapes()[e.shape].kind == ShapeKind::kSphere;
+      for (const Vec3& centroid : c) light.probes.push_back(Probe{centroid, {0, 0, 0}, int(e.shape), false, sphere});
+      lights.push_back(std::move(light));
     }
     for (const PointEmitter& e : scene.point_emitters())
-      all.push_back({4 * kPi * e.intensity.Luminance(), Probe{e.position, {0, 0, 0}, -1}});
+      lights.push_back({4 * kPi * e.intensity.Luminance(), {Probe{e.position, {0, 0, 0}, -1}}});
     const float r = scene.bounds().Radius();
     for (const DistantEmitter& e : scene.distant_emitters())
-      all.push_back({kPi * r * r * e.L.Luminance(), Probe{{0, 0, 0}, -e.direction, -1, true}});
-    std::stable_sort(all.begin(), all.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
-    for (const auto& [power, probe] : all)
-      if (power > 0 && probes_.size() < max_probes) probes_.push_back(probe);
+      lights.push_back({kPi * r * r * e.L.Luminance(), {Probe{{0, 0, 0}, -e.direction, -1, true}}});
+    std::stable_sort(lights.begin(), lights.end(), [](const Light& a, const Light& b) { return a.power > b.power; });
+    for (const Light& light : lights) {
+      if (!(light.power > 0) || probes_.size() + light.probes.size() > max_probes) break;
+      probes_.insert(probes_.end(), light.probes.begin(), light.probes.end());
+    }
   }
   bool empty() const { return probes_.empty(); }
 
   // Bit i: probe i lies on the side the point is seen from, and nothing opaque is in between.
   uint32_t Seen(const ShadingPoint& p) const {
     uint32_t seen = 0;
+    // Probes on a surface (a mesh emitter's part, a point light, a distant direction) take one
+    // batch of occlusion rays; a sphere's centroids are inside it, and take a closest hit.
+    std::array<RTCRay, kMaxProbes> rays;
+    std::array<uint32_t, kMaxProbes> bit;
+    unsigned nrays = 0;
     for (size_t i = 0; i < probes_.size(); ++i) {
       const Probe& probe = probes_[i];
       Vec3 w = probe.distant ? probe.direction : probe.p - p.p;
       const float d = Length(w);
       if (!(d > 0) || Dot(w, p.ng) * Dot(p.wo, p.ng) <= 0) continue;
       w = w / d;
-      Ray ray{OffsetRayOrigin(p.p, p.ng, w), w, probe.distant ? kInfinity : d * (1 - 1e-3f)};
-      SurfaceHit hit;
-      if (!scene_.Intersect(ray, &hit, kMaskOpaque) || int(hit.shape) == probe.shape) seen |= 1u << i;
+      const Ray ray{OffsetRayOrigin(p.p, p.ng, w), w, probe.distant ? kInfinity : d * (1 - 1e-3f)};
+      if (probe.inside) {
+        SurfaceHit hit;
+        if (!scene_.Intersect(ray, &hit, kMaskOpaque) || int(hit.shape) == probe.shape) seen |= 1u << i;
+        continue;
+      }
+      RTCRay& r = rays[nrays];
+      r = RTCRay{};
+      r.org_x = ray.o.x, r.org_y = ray.o.y, r.org_z = ray.o.z;
+      r.dir_x = w.x, r.dir_y = w.y, r.dir_z = w.z;
+      r.tnear = 0.f;
+      r.tfar = ray.tmax;
+      bit[nrays++] = 1u << i;
     }
+    if (nrays > 0) scene_.Occluded(rays.data(), nrays);
+    for (unsigned k = 0; k < nrays; ++k)
+      if (rays[k].tfar >= 0.f) seen |= bit[k];  // Embree sets tfar = -inf when occluded
     return seen;
   }
 
@@ -793,6 +821,7 @@ class ShadowProbes {
     Vec3 p, direction;  // a point on the emitter; a distant light's direction towards it
     int shape = -1;     // an area emitter's shape: reaching it is seeing the probe
     bool distant = false;
+    bool inside = false;  // inside its shape (a sphere's centroids): a closest hit decides
   };
   const Scene& scene_;
   std::vector<Probe> probes_;
