@@ -83,7 +83,7 @@ for row in sys.argv[4:]:
     px = t.shape[0] * t.shape[1]
     rp = f"{d['receivers']['points'] / px:.3f}"
     truths[name] = truth_json
-    md.append(f"| {name} | {res} | {k} | {'on' if shadows == '1' else 'off'} | {d['time']['total_s']:.1f} s | "
+    md.append(f"| {name} | {res} | {k} | { {'2': 'quarters', '1': 'centroids', '0': 'off'}[shadows] } | {d['time']['total_s']:.1f} s | "
               f"{d['time']['phases']['receivers']:.1f} s | {rp} | {err.sum() / norm:.4f} | "
               f"{err[edge].sum() / norm:.4f} | {err[~edge].sum() / norm:.4f} | {l2:.4f} | SPECKS:{image}:{truth} |")
 md += ["", "Truths (`path`, progressive, unless the scene's reference.exr):", ""]

@@ -191,13 +191,6 @@ float SharpAlpha(const MatrixOptions& options, size_t lights) {
   return std::clamp(by_count, kSharpAlphaFloor, 0.3f);
 }
 
-float NearSharpScale(double reflecting_area, size_t lights) {
-  // The same count as SharpAlpha's, near a surface: the cone of half-angle 2α meets a surface at
-  // distance d in a footprint of area ≈ π(2αd)², and N lights spread over the reflecting area A
-  // put N·4πα²d²/A of them in it. Below 40, α·d < √(10A / πN).
-  return float(std::sqrt(10.0 * std::max(reflecting_area, 0.0) / (double(kPi) * double(std::max<size_t>(lights, 1)))));
-}
-
 LightingMatrix::LightingMatrix(const Scene& scene, const ReceiverSet& receivers,
                                const LightSet& lights, const MatrixOptions& options)
     : scene_(scene), receivers_(receivers), lights_(lights) {

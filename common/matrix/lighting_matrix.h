@@ -77,7 +77,7 @@ struct MatrixOptions {
   // by the columns, smoother ones are sampled like delta lobes; -1 for the default tied to the
   // light count (SharpAlpha).
   float sharp_roughness = -1;
-  // Near-field sharp twins (kNearSharpMaxAlpha, NearSharpScale); off: the threshold alone.
+  // Near-field sharp twins (kNearSharpMaxAlpha, ReceiverOptions::near_sharp); off: the threshold alone.
   bool near_sharp = true;
   // Emitter samples at each sharp-lobe vertex of a camera path (ReceiverOptions::sharp_samples).
   int sharp_samples = 8;
@@ -94,9 +94,6 @@ float SharpAlpha(const MatrixOptions& options, size_t lights);
 // still sees few lights where its reflection lands close by. Lobes up to kNearSharpMaxAlpha have
 // a sharp twin (Scene::SetSharpAlpha) that receiver paths take at such vertices.
 inline constexpr float kNearSharpMaxAlpha = 0.5f;
-// The distance scale D of that rule: the reflection of a lobe of roughness α landing at distance
-// d is near when α·d < D. reflecting_area: Scene::ReflectingArea.
-float NearSharpScale(double reflecting_area, size_t lights);
 inline constexpr long long kDefaultCausticPhotons = 250000;
 
 

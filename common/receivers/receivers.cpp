@@ -80,6 +80,8 @@ RGB SharpLobeDirectLight(const Scene& scene, const EmitterSampler& lights, const
 
 // What a camera path collects by itself besides the emission it sees, and what it leaves for the
 // matrix (docs/rendering.md, "Camera-side supersampling" and "Rows, columns and elements").
+class NearFieldLights;
+
 struct CameraPathOptions {
   int max_depth = 5;
   // Emitter samples at a vertex that follows a sharp lobe, MIS-combined with the lobe's own
@@ -99,22 +101,80 @@ struct CameraPathOptions {
   int splits = 0;
   // Whether the path's receivers are kept (false for paths that only collect camera-side light).
   bool keep_points = true;
-  // The near-field rule's distance scale D (ReceiverOptions::near_sharp_scale); 0: off.
-  float near_sharp_scale = 0;
+  // The near-field rule's stand-in lights (ReceiverOptions::near_sharp_lights); null: off.
+  const NearFieldLights* near_lights = nullptr;
 };
 
-// Whether the vertex at `hit`, seen from wo, takes its material's near-field sharp twin
-// (docs/rendering.md, "Sharp lobes", *Near field*): its mirror direction reaches a surface that
-// is not an emitter within D / α, where its lobe's footprint holds too few virtual lights. A
-// function of the vertex alone, so either choice leaves the estimate unbiased.
-bool TakesNearSharpTwin(const Scene& scene, const SurfaceHit& hit, Vec3 wo, const Material& m, float scale) {
+// The near-field rule's stand-in for the render's lights (docs/rendering.md, "Sharp lobes", *Near
+// field*): the surface VPLs of a light set drawn like the render's but on its own seed, so which
+// vertices take a twin never depends on the lights the render gathers (either choice is then an
+// unbiased estimate). A k-d tree over their positions answers "how many within r of x", up to a cap.
+class NearFieldLights {
+ public:
+  // A vertex takes its twin where fewer of these fall in its lobe's footprint.
+  static constexpr size_t kEnoughLights = 40;
+
+  NearFieldLights(const Scene& scene, const LightGenerationOptions& opt) {
+    const LightSet set = GenerateLights(scene, opt);
+    for (const VirtualLight& l : set.lights)
+      if (l.kind == VirtualLightKind::kSurfaceVPL) points_.push_back(l.p);
+    Build(0, points_.size(), 0);
+  }
+  size_t size() const { return points_.size(); }
+
+  // The points within r of x, counting no further than cap.
+  size_t CountWithin(Vec3 x, float r, size_t cap) const {
+    size_t n = 0;
+    Count(0, points_.size(), 0, x, r * r, cap, &n);
+    return n;
+  }
+
+ private:
+  static float Axis(Vec3 v, int a) { return a == 0 ? v.x : a == 1 ? v.y : v.z; }
+  // Median splits on x, y, z in turn: the subrange [lo, hi)'s median sits at its middle.
+  void Build(size_t lo, size_t hi, int axis) {
+    if (hi - lo <= 1) return;
+    const size_t mid = lo + (hi - lo) / 2;
+    std::nth_element(points_.begin() + long(lo), points_.begin() + long(mid), points_.begin() + long(hi),
+                     [axis](Vec3 a, Vec3 b) { return Axis(a, axis) < Axis(b, axis); });
+    Build(lo, mid, (axis + 1) % 3);
+    Build(mid + 1, hi, (axis + 1) % 3);
+  }
+  void Count(size_t lo, size_t hi, int axis, Vec3 x, float r2, size_t cap, size_t* n) const {
+    if (lo >= hi || *n >= cap) return;
+    const size_t mid = lo + (hi - lo) / 2;
+    const Vec3 p = points_[mid];
+    const Vec3 d = p - x;
+    if (Dot(d, d) <= r2) ++*n;
+    const float delta = Axis(x, axis) - Axis(p, axis);
+    const int next = (axis + 1) % 3;
+    // The side x is on first; the other only if the sphere reaches across the split.
+    if (delta < 0) {
+      Count(lo, mid, next, x, r2, cap, n);
+      if (delta * delta <= r2) Count(mid + 1, hi, next, x, r2, cap, n);
+    } else {
+      Count(mid + 1, hi, next, x, r2, cap, n);
+      if (delta * delta <= r2) Count(lo, mid, next, x, r2, cap, n);
+    }
+  }
+  std::vector<Vec3> points_;
+};
+
+// Whether the vertex at `hit`, seen from wo, takes its material's near-field sharp twin: its
+// mirror direction meets a surface that is not an emitter (emitters carry their own dense
+// lights) at distance d, and fewer than kEnoughLights of the stand-in lights lie within 2αd of
+// that point, the footprint of the lobe's cone (half-angle ≈ 2α). A function of the vertex alone.
+bool TakesNearSharpTwin(const Scene& scene, const NearFieldLights& lights, const SurfaceHit& hit, Vec3 wo,
+                        const Material& m) {
   const float alpha = std::max(m.alpha_x, m.alpha_y);
-  const float cos_o = Dot(wo, hit.ns);
-  const Vec3 r = hit.ns * (2 * cos_o) - wo;
+  const Vec3 r = hit.ns * (2 * Dot(wo, hit.ns)) - wo;
   if (!(alpha > 0) || Dot(r, hit.ng) * Dot(wo, hit.ng) <= 0) return false;
-  const Ray ray{OffsetRayOrigin(hit.p, hit.ng, r), r, scale / alpha};
   SurfaceHit near;
-  return scene.Intersect(ray, &near, kMaskOpaque) && scene.shapes()[near.shape].area_emitter < 0;
+  if (!scene.Intersect(Ray{OffsetRayOrigin(hit.p, hit.ng, r), r, kInfinity}, &near, kMaskOpaque) ||
+      scene.shapes()[near.shape].area_emitter >= 0)
+    return false;
+  const float footprint = 2 * alpha * near.t;
+  return lights.CountWithin(near.p, footprint, NearFieldLights::kEnoughLights) < NearFieldLights::kEnoughLights;
 }
 
 // A camera ray's piece [0, tmax] inside one medium, tabulated (an unbounded piece, a ray leaving
@@ -243,9 +303,9 @@ PathEnd TraceCameraPath(const Scene& scene, const CameraPathOptions& opt, Ray ra
       }
       const Shape& shape = scene.shapes()[hit.shape];
       int material = shape.material;
-      if (opt.near_sharp_scale > 0) {
+      if (opt.near_lights) {
         const int twin = scene.near_sharp_twin(material);
-        if (twin >= 0 && TakesNearSharpTwin(scene, hit, wo, scene.materials()[size_t(material)], opt.near_sharp_scale)) {
+        if (twin >= 0 && TakesNearSharpTwin(scene, *opt.near_lights, hit, wo, scene.materials()[size_t(material)])) {
           material = twin;
           ++end.near_sharp_vertices;
         }
@@ -1111,7 +1171,13 @@ ReceiverSet GenerateReceivers(const Scene& scene, const FilterSampler& filter,
   receiver_paths.media_samples = opt.media_direct_samples;
   receiver_paths.segments_per_ray = opt.segments_per_ray;
   receiver_paths.splits = opt.splits;
-  receiver_paths.near_sharp_scale = opt.near_sharp_scale;
+  std::optional<NearFieldLights> near_lights;
+  if (opt.near_sharp_lights.target_lights > 0 && scene.near_sharp_twins() > 0) {
+    LightGenerationOptions lopt = opt.near_sharp_lights;
+    lopt.seed = HashSeed({opt.seed, uint64_t(RngStream::kNearPilot)});
+    near_lights.emplace(scene, lopt);
+    if (near_lights->size() > 0) receiver_paths.near_lights = &*near_lights;
+  }
   // Coverage paths share the sample's emitter samples at sharp vertices.
   const int coverage = opt.coverage > 1 && opt.segments_per_ray < 0 && filter.positive() ? opt.coverage : 1;
   const std::vector<Vec2> lattice = CoverageLattice(coverage);

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "common/image/filter.h"
+#include "common/lights/light_generation.h"
 #include "common/scene/medium_track.h"
 #include "common/scene/scene.h"
 
@@ -121,10 +122,11 @@ struct ReceiverOptions {
   // (a sample that follows a coat has no receiver on the base; one reflected by glass sees only
   // the reflection).
   int splits = 0;
-  // The near-field sharp rule's distance scale D (NearSharpScale, lighting_matrix.h): a vertex on
-  // a material with a near-field sharp twin (Scene::SetSharpAlpha) whose mirror direction meets a
-  // non-emitting surface within D / α takes the twin. 0: never.
-  float near_sharp_scale = 0;
+  // The near-field rule (docs/rendering.md, "Sharp lobes", *Near field*): a vertex on a material
+  // with a near-field sharp twin (Scene::SetSharpAlpha) takes the twin where fewer than 40 lights
+  // of a light set like the render's fall in its lobe's footprint. That set is drawn here, on its
+  // own seed, with these options (its target_lights 0: the rule is off).
+  LightGenerationOptions near_sharp_lights{0};
   // Coverage paths per receiver sample (docs/rendering.md, "Coverage"): the sample traces this
   // many camera paths, each with its own film position, and groups them by the surfaces they end
   // on (material, depth, normal within ~18°, no step off the plane); each group keeps the

@@ -192,8 +192,13 @@ Plan BuildPlanWith(const std::function<const SceneDescription&()>& scene_desc, c
   ropt.media_direct_samples = media_rows ? plan.matrix_options.media_direct_samples : 0;
   ropt.sharp_samples = plan.matrix_options.sharp_samples;
   ropt.splits = plan.matrix_options.splits;
-  ropt.near_sharp_scale =
-      scene.near_sharp_twins() > 0 ? NearSharpScale(scene.ReflectingArea(), settings.lights) : 0.f;
+  if (scene.near_sharp_twins() > 0) {
+    // The near-field rule's own light set: drawn like the render's (below), on its own seed.
+    ropt.near_sharp_lights.target_lights = settings.lights;
+    ropt.near_sharp_lights.direct_fraction = options.direct_fraction;
+    ropt.near_sharp_lights.max_depth = scene.hints().max_depth;
+    ropt.near_sharp_lights.quasi_random_paths = options.quasi_random_paths;
+  }
   ropt.coverage = method_options.coverage;
   ropt.coverage_shadows = method_options.coverage_shadows;
   // Refined slices split segments at their boundaries, which a row of several rays' pieces has
@@ -475,10 +480,7 @@ nlohmann::json MakeStats(const Plan& plan, const RenderSettings& settings,
   // The sharp-lobe split (docs/rendering.md): its threshold and the materials it made sharp.
   s["sharp"] = {{"alpha", plan.method->renders_film() ? 0.0 : double(SharpAlpha(plan.matrix_options, settings.lights))},
                 {"materials", SharpMaterials(*plan.scene) - plan.scene->near_sharp_twins()},
-                {"near_twins", plan.scene->near_sharp_twins()},
-                {"near_scale", plan.scene->near_sharp_twins() > 0
-                                   ? double(NearSharpScale(plan.scene->ReflectingArea(), settings.lights))
-                                   : 0.0}};
+                {"near_twins", plan.scene->near_sharp_twins()}};
   s["caustics"] = {{"photons", plan.matrix->caustic_photon_target()},
                    {"photons_used", counters.caustic_photons_used},
                    {"energy_fraction", total_lum > 0 ? counters.caustic_gathered / total_lum : 0.0}};

@@ -570,25 +570,6 @@ void Scene::SetSharpAlpha(float alpha, float near_max_alpha) {
   }
 }
 
-double Scene::ReflectingArea() const {
-  double area = 0;
-  for (const Shape& sh : shapes_) {
-    if (sh.area_emitter >= 0) continue;
-    const uint32_t flags = MaterialFlags(materials_[size_t(sh.material)]);
-    if (flags == 0 || IsPurelySpecular(flags)) continue;
-    if (sh.kind == ShapeKind::kSphere) {
-      area += 4 * double(kPi) * double(sh.radius) * double(sh.radius);
-      continue;
-    }
-    for (size_t t = 0; t + 2 < sh.indices.size(); t += 3) {
-      const Vec3 a = sh.positions[sh.indices[t]], b = sh.positions[sh.indices[t + 1]],
-                 c = sh.positions[sh.indices[t + 2]];
-      area += 0.5 * double(Length(Cross(b - a, c - a)));
-    }
-  }
-  return area;
-}
-
 void Scene::SampleAreaEmitter(const AreaEmitter& e, Vec2 u, Vec3* p, Vec3* n) const {
   const Shape& sh = shapes_[e.shape];
   if (sh.kind == ShapeKind::kSphere) {

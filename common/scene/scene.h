@@ -97,8 +97,6 @@ class Scene {
   int near_sharp_twin(int material) const {
     return material >= 0 && size_t(material) < near_twins_.size() ? near_twins_[size_t(material)] : -1;
   }
-  // Area of the surfaces a virtual light can be left on: not emitting, with a diffuse or glossy lobe.
-  double ReflectingArea() const;
   const std::vector<AreaEmitter>& area_emitters() const { return area_emitters_; }
   const std::vector<PointEmitter>& point_emitters() const { return point_emitters_; }
   const std::vector<DistantEmitter>& distant_emitters() const { return distant_emitters_; }

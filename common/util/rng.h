@@ -43,6 +43,7 @@ enum class RngStream : uint64_t {
   kNearSample = 14,  // adaptive-completion: near lights sampled per row
   kClampProbe = 15,  // the clamp-loss probe's light sets (clamp_probe.h): one per batch
   kSegmentCoverage = 16,  // coverage rays of media rows (receivers.cpp): one per camera sample
+  kNearPilot = 17,  // the near-field rule's own light set (receivers.cpp, NearFieldLights)
 };
 
 // PCG32 (O'Neill 2014): small state, good statistics, cheap to seed per pixel / per path.
