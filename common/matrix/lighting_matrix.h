@@ -77,7 +77,8 @@ struct MatrixOptions {
   // by the columns, smoother ones are sampled like delta lobes; -1 for the default tied to the
   // light count (SharpAlpha).
   float sharp_roughness = -1;
-  // Near-field sharp twins (kNearSharpMaxAlpha, ReceiverOptions::near_sharp); off: the threshold alone.
+  // Near-field sharp twins (kNearSharpMaxAlpha, ReceiverOptions::near_sharp_lights); off: the
+  // threshold alone.
   bool near_sharp = true;
   // Emitter samples at each sharp-lobe vertex of a camera path (ReceiverOptions::sharp_samples).
   int sharp_samples = 8;
