@@ -188,30 +188,21 @@ TEST(Coverage, ShadowProbesAntialiasShadowEdgesOnOneSurface) {
 // shadow crosses the view. Across a penumbra a point sees part of the light; one probe at the
 // light's centroid parts a pixel only where that point's visibility changes, a probe per quarter
 // (coverage_shadows=2, the default) wherever a quarter's does, so its pixels come closer to many
-// samples per pixel.
-const char* kPenumbra = R"(
-Integrator "path" "integer maxdepth" [ 1 ]
-Film "rgb" "integer xresolution" [ 32 ] "integer yresolution" [ 32 ] "string filename" [ "penumbra.exr" ]
-PixelFilter "box"
-LookAt 0 0 6  0 0 0  0 1 0
-Camera "perspective" "float fov" [ 30 ]
-WorldBegin
-AttributeBegin
+// samples per pixel. The scene is kShadowEdge with its distant light replaced by that quad.
+std::string PenumbraScene() {
+  std::string scene = kShadowEdge;
+  const std::string distant = "LightSource \"distant\" \"point3 from\" [ 4 0 4 ] \"point3 to\" [ 0 0 0 ] \"rgb L\" [ 3 3 3 ]";
+  return scene.replace(scene.find(distant), distant.size(), R"(AttributeBegin
   AreaLightSource "diffuse" "rgb L" [ 3000 3000 3000 ] "bool twosided" true
   Material "diffuse" "rgb reflectance" [ 0 0 0 ]
   Shape "trianglemesh" "integer indices" [ 0 1 2 0 2 3 ]
     "point3 P" [ 6.823 -0.25 7.177  7.177 -0.25 6.823  7.177 0.25 6.823  6.823 0.25 7.177 ]
-AttributeEnd
-Material "diffuse" "rgb reflectance" [ 0.8 0.8 0.8 ]
-Shape "trianglemesh" "integer indices" [ 0 1 2 0 2 3 ]
-  "point3 P" [ -10 -10 -1  10 -10 -1  10 10 -1  -10 10 -1 ]
-Shape "trianglemesh" "integer indices" [ 0 1 2 0 2 3 ]
-  "point3 P" [ 1.9 -4 3  9 -4 3  9 4 3  3.1 4 3 ]
-)";
+AttributeEnd)");
+}
 
 TEST(Coverage, QuarterProbesAntialiasPenumbrae) {
   TempDir dir;
-  const std::string path = dir.Write("penumbra.pbrt", kPenumbra);
+  const std::string path = dir.Write("penumbra.pbrt", PenumbraScene());
   double err_centroid = 0, err_quarters = 0, sum_quarters = 0, sum_truth = 0;
   for (uint64_t seed : {1, 2, 3, 4}) {
     RenderSettings s;
