@@ -114,6 +114,19 @@ int CameraPathsFor(const Scene& scene, const Effects& effects, bool media_direct
   return media_direct ? kDefaultMediaCameraPaths : 0;
 }
 
+// The virtual lights a render draws on the surfaces, before the media's options: the render's
+// own set (seeded by the job) and the near-field rule's stand-in (receivers.cpp) alike.
+LightGenerationOptions LightOptionsFor(const RenderSettings& settings, const RenderOptions& options,
+                                       const Scene& scene) {
+  LightGenerationOptions lopt;
+  lopt.target_lights = settings.lights;
+  lopt.direct_fraction = options.direct_fraction;
+  lopt.max_depth = scene.hints().max_depth;
+  lopt.seed = settings.seed;
+  lopt.quasi_random_paths = options.quasi_random_paths;
+  return lopt;
+}
+
 // The light tree (when the method needs one) and the matrix over the plan's receivers and lights.
 void AttachMatrix(const RenderSettings& settings, Plan* plan) {
   if (plan->method->renders_film()) {
@@ -192,13 +205,9 @@ Plan BuildPlanWith(const std::function<const SceneDescription&()>& scene_desc, c
   ropt.media_direct_samples = media_rows ? plan.matrix_options.media_direct_samples : 0;
   ropt.sharp_samples = plan.matrix_options.sharp_samples;
   ropt.splits = plan.matrix_options.splits;
-  if (scene.near_sharp_twins() > 0) {
-    // The near-field rule's own light set: drawn like the render's (below), on its own seed.
-    ropt.near_sharp_lights.target_lights = settings.lights;
-    ropt.near_sharp_lights.direct_fraction = options.direct_fraction;
-    ropt.near_sharp_lights.max_depth = scene.hints().max_depth;
-    ropt.near_sharp_lights.quasi_random_paths = options.quasi_random_paths;
-  }
+  // The near-field rule's own light set: drawn like the render's surface lights (below); the
+  // receivers give it its own seed.
+  if (scene.near_sharp_twins() > 0) ropt.near_sharp_lights = LightOptionsFor(settings, options, scene);
   ropt.coverage = method_options.coverage;
   ropt.coverage_shadows = method_options.coverage_shadows;
   // Refined slices split segments at their boundaries, which a row of several rays' pieces has
@@ -211,14 +220,9 @@ Plan BuildPlanWith(const std::function<const SceneDescription&()>& scene_desc, c
   std::vector<Slice> segment_slices = SliceSegments(scene, plan.receivers.get(), options.segment_slicing);
   if (!segment_slices.empty()) timer.End("segment_slicing");
 
-  LightGenerationOptions lopt;
-  lopt.target_lights = settings.lights;
-  lopt.direct_fraction = options.direct_fraction;
-  lopt.max_depth = scene.hints().max_depth;
-  lopt.seed = settings.seed;
+  LightGenerationOptions lopt = LightOptionsFor(settings, options, scene);
   lopt.medium_lights = media_rows ? options.media_lights : MediumLights::kNone;
   lopt.vrl_pieces = options.vrl_pieces;
-  lopt.quasi_random_paths = options.quasi_random_paths;
   *plan.lights = GenerateLights(scene, lopt);
   plan.light_options = lopt;
   timer.End("lights");

@@ -103,7 +103,7 @@ bool ActsAsDelta(const Material& m);
 // Whether the material has a glossy lobe the split made sharp.
 bool HasSharpLobe(const Material& m);
 // True if the material has a microfacet lobe that is neither smooth nor sharp: one the columns
-// evaluate, and a near-field sharp twin could sample instead (Scene::AddNearSharpTwins).
+// evaluate, and a near-field sharp twin could sample instead (Scene::SetSharpAlpha).
 bool HasRoughMicrofacetLobe(const Material& m);
 // The sharp lobe alone, as SampleBSDF samples it: its f, and its pdf including the probability
 // of choosing it (SpecularSamplingProbability); zero unless HasSharpLobe. For next-event
