@@ -38,10 +38,27 @@
 // are zero; the bounds ignore that (they stay conservative) and the representative estimate
 // stays unbiased over the representative choice.
 //
+// The dark floor: a relative bound is hardest to meet where a receiver gets little light (a floor
+// in the shadow of a plate, the far wall a glossy reflection lands on): the total is small, the
+// bounds assume every light visible, and the cut runs to max_cut for a value the image barely
+// holds. Below a few percent of the image's brightness an error is a fraction of a fraction of
+// what the eye or rel_l1 sees (luminance discrimination is relative only above a dark floor:
+// Weber's law bends there, the threshold-versus-intensity curve flattens). So a row whose cut
+// holds max_cut / 4 nodes also stops when every bound is below error × F, F = floor × L/r (a
+// smaller cut answers to the relative bound only: kFloorFromCutShare), L the image's mean
+// radiance per camera sample (the light its camera paths collect by themselves plus its rows),
+// r the rows per sample. A sample's error then stays below error × max(its radiance, floor × L),
+// roughly. L comes from a pilot stage before the gather: an image-wide stratified subset of
+// about kPilotRows rows (every k-th row; rows are in pixel order) refines its cuts at a coarser
+// bound, and Combine adds their mean to the samples' own radiance. The subset depends only on
+// the receivers, so the floor, and every row's cut, are the same however the rows are sliced.
+//
 // Parameters: error (relative error bound, default 0.02), max_cut (default 1000; unlimited
-// when error = 0, which then means "exact").
+// when error = 0, which then means "exact"), floor (default kDefaultFloor; 0: no pilot, the
+// plain relative bound; ignored when error = 0).
 // Stats: "cut_size" is the sum of the final cut sizes over the task's rows (stats / rows = mean
-// cut size); "cut_capped" counts rows whose cut stopped at max_cut.
+// cut size); "cut_capped" counts rows whose cut stopped at max_cut; "floored" rows whose cut
+// stopped on the floor before its own total's bound; "pilot_rows" the pilot's rows.
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
@@ -56,10 +73,26 @@
 #include "common/lights/light_bounds.h"
 #include "common/scene/bsdf.h"
 #include "common/util/check.h"
+#include "common/util/payload_bytes.h"
 
 namespace lightfarm {
 
 namespace {
+
+// The pilot: about this many rows, refined at a bound of at least kPilotError and at most
+// kPilotMaxCut nodes (it only needs the image's mean to a few percent).
+constexpr size_t kPilotRows = 1024;
+constexpr double kPilotError = 0.1;
+constexpr size_t kPilotMaxCut = 256;
+constexpr size_t kPilotRowsPerTask = 256;
+// The floor's default, a fraction of the image's mean radiance per row: chosen by the sweep in
+// docs/methods/lightcuts-floor.md (scripts/report-lightcuts-floor.sh).
+constexpr double kDefaultFloor = 0.1;
+// The floor only stops cuts of at least max_cut / 4 nodes (256 at the default cap): a dark row
+// still gets that many before the floor ends it. Stopped earlier, whole dark regions came out as
+// single-pixel specks (a few clusters whose representatives were all occluded); the floor's gain
+// is the rows that would otherwise run to the cap.
+constexpr size_t kFloorFromCutShare = 4;
 
 // ---------------------------------------------------------------------------------------
 // One receiver's view of the tree
@@ -87,17 +120,81 @@ RGB ReceiverMaterialBound(const ReceiverBounds& r, const DirectionCone& c, const
 
 class LightcutsGather final : public GatherMethod {
  public:
-  LightcutsGather(double error, size_t max_cut) : error_(error), max_cut_(max_cut) {}
+  LightcutsGather(double error, size_t max_cut, double floor)
+      : error_(error), max_cut_(max_cut), floor_(error > 0 ? floor : 0) {}
 
   std::string name() const override { return "lightcuts"; }
   bool needs_light_tree() const override { return true; }
+  int stage_count() const override { return floor_ > 0 ? 2 : 1; }
+  std::string stage_name(int stage) const override {
+    return stage + 1 == stage_count() ? "gather" : "pilot";
+  }
+
+  std::vector<SubMatrixTask> PlanStage(int stage, const GatherContext& ctx,
+                                       const std::vector<SubMatrixTask>& tiles,
+                                       const StageArtifact& previous) const override {
+    if (stage + 1 == stage_count()) return GatherMethod::PlanStage(stage, ctx, tiles, previous);
+    // Every k-th row of the image, in row order, whichever tile holds it.
+    const size_t k = std::max<size_t>(1, ctx.matrix.receivers().points.size() / kPilotRows);
+    std::vector<uint32_t> pilot;
+    for (const SubMatrixTask& tile : tiles)
+      for (uint32_t row : tile.rows)
+        if (row % k == 0) pilot.push_back(row);
+    std::sort(pilot.begin(), pilot.end());
+    // At least one task, so that Combine runs even without receivers.
+    std::vector<SubMatrixTask> tasks;
+    for (size_t begin = 0; begin < pilot.size() || tasks.empty(); begin += kPilotRowsPerTask) {
+      SubMatrixTask task;
+      task.stage = uint32_t(stage);
+      task.task_id = uint32_t(tasks.size());
+      task.seed = tiles.empty() ? 0 : tiles.front().seed;
+      const size_t end = std::min(pilot.size(), begin + kPilotRowsPerTask);
+      if (begin < end) task.rows.assign(pilot.begin() + ptrdiff_t(begin), pilot.begin() + ptrdiff_t(end));
+      tasks.push_back(std::move(task));
+    }
+    return tasks;
+  }
+
+  // The pilot's payloads (row count, summed luminance) → the artifact: the floor F.
+  StageArtifact Combine(int, const GatherContext& ctx, const std::vector<TaskOutput>& outputs) const override {
+    double rows = 0, sum = 0;
+    for (const TaskOutput& o : outputs) {
+      PayloadReader in(o.payload, "lightcuts", "pilot payload");
+      rows += double(in.Get<uint64_t>());
+      sum += in.Get<double>();
+      if (!in.AtEnd()) throw std::runtime_error("lightcuts: trailing bytes in a pilot payload");
+    }
+    const ReceiverSet& receivers = ctx.matrix.receivers();
+    double emitted = 0;
+    for (const CameraSample& s : receivers.samples) emitted += double(std::max(0.f, s.emitted.Luminance()));
+    float floor = 0;
+    if (rows > 0 && !receivers.points.empty()) {
+      // L / r = (emitted per sample + row mean × r) / r, r = rows per sample.
+      const double per_sample = double(receivers.points.size()) / double(receivers.samples.size());
+      floor = float(floor_ * (emitted / double(receivers.samples.size()) / per_sample + sum / rows));
+    }
+    PayloadWriter out;
+    out.Put(floor);
+    return out.Take();
+  }
+
   // Its bounds know surface elements only (material × geometry × cone); media rows need their own.
   bool gathers_media() const override { return false; }
 
   TaskOutput RunTask(const GatherContext& ctx, const SubMatrixTask& task,
-                     const StageArtifact&) const override {
+                     const StageArtifact& previous) const override {
     CHECK(ctx.tree != nullptr);  // the plan builds the tree for methods that need one
     std::shared_ptr<const std::vector<EmissionBound>> emission = Emission(ctx);
+    const bool pilot = int(task.stage) + 1 < stage_count();
+    Criterion criterion{float(error_), max_cut_, 0.f};
+    if (pilot) {
+      criterion = Criterion{float(std::max(error_, kPilotError)), std::min(max_cut_, kPilotMaxCut), 0.f};
+    } else if (floor_ > 0) {
+      PayloadReader in(previous, "lightcuts", "pilot artifact");
+      criterion.floor = in.Get<float>();
+      if (!in.AtEnd() || !(criterion.floor >= 0) || !std::isfinite(criterion.floor))
+        throw std::runtime_error("lightcuts: corrupt pilot artifact");
+    }
     TaskOutput result;
     result.row_sums.resize(task.rows.size());
     // Chunks of rows refine their cuts in lockstep so that their new elements are evaluated
@@ -109,25 +206,50 @@ class LightcutsGather final : public GatherMethod {
     std::vector<ChunkStats> chunks(nchunks);
     tbb::parallel_for(size_t(0), nchunks, [&](size_t c) {
       size_t begin = c * kRowsPerChunk, end = std::min(task.rows.size(), begin + kRowsPerChunk);
-      GatherRows(ctx.matrix, *ctx.tree, *emission,
+      GatherRows(ctx.matrix, *ctx.tree, *emission, criterion,
                  std::span<const uint32_t>(task.rows).subspan(begin, end - begin),
                  std::span<RGBAccum>(result.row_sums).subspan(begin, end - begin), &chunks[c]);
     });
-    double cut_size = 0, capped = 0;
+    double cut_size = 0, capped = 0, floored = 0;
     for (const ChunkStats& c : chunks) {
       result.counters.Add(c.counters);
       cut_size += c.cut_size;
       capped += c.capped;
+      floored += c.floored;
+    }
+    if (pilot) {
+      // The mean of the pilot rows' luminance, summed in row order: the same bits on any threads.
+      double sum = 0;
+      for (const RGBAccum& r : result.row_sums) sum += double(std::max(0.f, r.ToRGB().Luminance()));
+      PayloadWriter out;
+      out.Put(uint64_t(task.rows.size()));
+      out.Put(sum);
+      result.payload = out.Take();
+      result.row_sums.clear();
+      result.stats["pilot_rows"] = double(task.rows.size());
+      return result;
     }
     result.stats["cut_size"] = cut_size;
     result.stats["cut_capped"] = capped;
+    result.stats["floored"] = floored;
     return result;
   }
 
  private:
+  // When a row's cut stops: every bound below error × max(total, floor), or max_cut nodes. The
+  // floor counts only from max_cut / kFloorFromCutShare nodes on.
+  struct Criterion {
+    float error;
+    size_t max_cut;
+    float floor;
+    float Floor(size_t cut_size) const {
+      return cut_size >= max_cut / kFloorFromCutShare ? floor : 0.f;
+    }
+  };
+
   struct ChunkStats {
     MatrixCounters counters;
-    double cut_size = 0, capped = 0;
+    double cut_size = 0, capped = 0, floored = 0;
   };
 
   struct CutNode {
@@ -207,14 +329,15 @@ class LightcutsGather final : public GatherMethod {
     return e;
   }
 
-  bool WantsRefinement(const RowCut& cut) const {
+  static bool WantsRefinement(const RowCut& cut, float error, float floor) {
     if (cut.heap.empty()) return false;
     const float bound = cut.heap.front().bound;
-    return bound > 0 && bound > float(error_) * std::max(0.f, cut.total.Luminance());
+    return bound > 0 && bound > error * std::max(floor, cut.total.Luminance());
   }
 
   void GatherRows(const LightingMatrix& matrix, const LightTree& tree,
-                  const std::vector<EmissionBound>& emission, std::span<const uint32_t> rows,
+                  const std::vector<EmissionBound>& emission, const Criterion& criterion,
+                  std::span<const uint32_t> rows,
                   std::span<RGBAccum> sums, ChunkStats* stats) const {
     const std::vector<Material>& materials = matrix.scene().materials();
     const LightSet& lights = matrix.lights();
@@ -295,7 +418,8 @@ class LightcutsGather final : public GatherMethod {
       for (uint32_t c = 0; c < cuts.size(); ++c) {
         RowCut& cut = cuts[c];
         if (cut.done) continue;
-        if (cut.heap.size() >= max_cut_ || !WantsRefinement(cut)) {
+        const size_t size = cut.heap.size();
+        if (size >= criterion.max_cut || !WantsRefinement(cut, criterion.error, criterion.Floor(size))) {
           cut.done = true;
           continue;
         }
@@ -315,7 +439,8 @@ class LightcutsGather final : public GatherMethod {
     for (size_t i = 0; i < cuts.size(); ++i) {
       RowCut& cut = cuts[i];
       stats->cut_size += double(cut.heap.size());
-      if (WantsRefinement(cut)) stats->capped += 1;
+      if (WantsRefinement(cut, criterion.error, criterion.Floor(cut.heap.size()))) stats->capped += 1;
+      else if (WantsRefinement(cut, criterion.error, 0.f)) stats->floored += 1;
       // The running total drifts by rounding: sum the final cut in double, in node order so
       // the result does not depend on heap internals.
       std::sort(cut.heap.begin(), cut.heap.end(),
@@ -343,6 +468,7 @@ class LightcutsGather final : public GatherMethod {
 
   double error_;
   size_t max_cut_;
+  double floor_;
   mutable std::mutex mutex_;
   mutable std::shared_ptr<const std::vector<EmissionBound>> cached_;
   mutable const LightTree* cached_tree_ = nullptr;
@@ -357,7 +483,8 @@ std::unique_ptr<GatherMethod> CreateLightcutsGather(const OptionMap& params) {
   // error = 0 asks for the exact sum: no cap unless one is given.
   const long long unlimited = std::numeric_limits<int32_t>::max();
   size_t max_cut = size_t(params.GetInt("max_cut", error > 0 ? 1000 : unlimited, 1, unlimited));
-  return std::make_unique<LightcutsGather>(error, max_cut);
+  double floor = params.GetDouble("floor", kDefaultFloor, 0.0, 1.0);
+  return std::make_unique<LightcutsGather>(error, max_cut, floor);
 }
 
 GatherMethodInfo LightcutsMethod() {

@@ -5,6 +5,7 @@
 #include <tbb/global_control.h>
 
 #include <cmath>
+#include <cstdio>
 #include <string>
 
 #include "common/render/render_job.h"
@@ -121,6 +122,74 @@ TEST(Lightcuts, RejectsInvalidParameters) {
   const std::string scene = testing::SharedScene("cornell-box");
   EXPECT_THROW(Render(scene, "lightcuts", {"error=2"}, 10, 4), OptionError);
   EXPECT_THROW(Render(scene, "lightcuts", {"max_cut=0"}, 10, 4), OptionError);
+  EXPECT_THROW(Render(scene, "lightcuts", {"floor=-0.1"}, 10, 4), OptionError);
+  EXPECT_THROW(Render(scene, "lightcuts", {"floor=2"}, 10, 4), OptionError);
+}
+
+// The dark floor (lightcuts.cpp): a floor under a quad light, half of it in the shadow of a plate,
+// a wall beside it. The shadowed half and the plate's underside get only what the wall and the
+// lit floor bounce: small totals whose cuts the relative bound alone runs long.
+std::string DarkFloorScene(const testing::TempDir& dir, const std::string& radiance) {
+  return dir.Write("dark-floor-" + radiance + ".pbrt", R"(
+Integrator "path" "integer maxdepth" [ 3 ]
+Film "rgb" "integer xresolution" [ 24 ] "integer yresolution" [ 24 ] "string filename" [ "f.exr" ]
+PixelFilter "box"
+LookAt 0 1.5 6  0 0 0  0 1 0
+Camera "perspective" "float fov" [ 60 ]
+WorldBegin
+AttributeBegin
+  AreaLightSource "diffuse" "rgb L" [ )" + radiance + " " + radiance + " " + radiance + R"( ] "bool twosided" true
+  Shape "trianglemesh" "integer indices" [ 0 1 2 0 2 3 ]
+    "point3 P" [ -0.5 4 -0.5  0.5 4 -0.5  0.5 4 0.5  -0.5 4 0.5 ]
+AttributeEnd
+Material "diffuse" "rgb reflectance" [ 0.3 0.3 0.3 ]
+Shape "trianglemesh" "integer indices" [ 0 1 2 0 2 3 ]
+  "point3 P" [ -4 0 -4  4 0 -4  4 0 4  -4 0 4 ]
+Shape "trianglemesh" "integer indices" [ 0 1 2 0 2 3 ]
+  "point3 P" [ -3 0 -4  -3 4 -4  -3 4 4  -3 0 4 ]
+Shape "trianglemesh" "integer indices" [ 0 1 2 0 2 3 ]
+  "point3 P" [ 0.3 2 -4  5 2 -4  5 2 4  0.3 2 4 ]
+)");
+}
+
+TEST(Lightcuts, DarkFloorStopsDimRowsEarlyAndStaysClose) {
+  testing::TempDir dir;
+  const std::string scene = DarkFloorScene(dir, "4");
+  RenderOutput brute = Render(scene, "brute", {}, 4000, 24);
+  RenderOutput plain = Render(scene, "lightcuts", {"floor=0"}, 4000, 24);
+  RenderOutput floored = Render(scene, "lightcuts", {"floor=0.5"}, 4000, 24);
+  const nlohmann::json& stats = floored.stats["method_stats"];
+  EXPECT_EQ(plain.stats["method_stats"]["floored"].get<double>(), 0.0);
+  EXPECT_GT(stats["floored"].get<double>(), 0.0);
+  EXPECT_GT(stats["pilot_rows"].get<double>(), 0.0);
+  // The gather's cuts (the pilot's elements are on top of them).
+  const double plain_cut = plain.stats["method_stats"]["cut_size"].get<double>();
+  const double floored_cut = stats["cut_size"].get<double>();
+  EXPECT_LT(floored_cut, 0.85 * plain_cut);
+  const double plain_err = CompareImages(brute.image, plain.image).rel_l1;
+  const double floored_err = CompareImages(brute.image, floored.image).rel_l1;
+  std::printf("cut nodes: plain %.0f, floored %.0f (%.0f rows floored, %.0f capped); rel_l1 against brute "
+              "force: plain %.5f, floored %.5f\n", plain_cut, floored_cut, stats["floored"].get<double>(),
+              stats["cut_capped"].get<double>(), plain_err, floored_err);
+  EXPECT_LT(floored_err, 0.03);
+  EXPECT_LT(floored_err, plain_err + 0.005);
+}
+
+// The floor is a fraction of the image's own mean, never an absolute radiance: emitters four
+// times as bright (a power of two, so every product and sum scales exactly) give the same cuts
+// and an image exactly four times as bright.
+TEST(Lightcuts, DarkFloorIsRelativeToTheImage) {
+  testing::TempDir dir;
+  RenderOutput one = Render(DarkFloorScene(dir, "4"), "lightcuts", {"floor=0.5"}, 4000, 24);
+  RenderOutput four = Render(DarkFloorScene(dir, "16"), "lightcuts", {"floor=0.5"}, 4000, 24);
+  EXPECT_GT(one.stats["method_stats"]["floored"].get<double>(), 0.0);
+  EXPECT_EQ(Elements(one), Elements(four));
+  EXPECT_EQ(one.stats["method_stats"]["floored"].get<double>(), four.stats["method_stats"]["floored"].get<double>());
+  ASSERT_EQ(one.image.pixels.size(), four.image.pixels.size());
+  for (size_t i = 0; i < one.image.pixels.size(); ++i)
+    for (int c = 0; c < 3; ++c)
+      ASSERT_NEAR(4 * one.image.pixels[i][c], four.image.pixels[i][c], 1e-5f * four.image.pixels[i][c])
+          << "pixel " << i;
 }
 
 }  // namespace test_lightcuts
