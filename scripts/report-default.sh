@@ -69,7 +69,7 @@ path_args() {
   echo --spp $(( (n + passes - 1) / passes )) --passes "$passes"
 }
 json() { /usr/bin/python3 -c "import json,sys; d=json.load(open(sys.argv[1])); print(eval(sys.argv[2], {'d': d}))" "$@"; }
-error() { "$lf" compare --resize --json "$1" "$2" | /usr/bin/python3 -c "import json,sys; d=json.load(sys.stdin); print(d['rel_l1'], d['rel_l2'], d['speck_share'])"; }
+error() { "$lf" compare --resize --json "$1" "$2" | /usr/bin/python3 -c "import json,sys; d=json.load(sys.stdin); print(d['rel_l1'], d['rel_l2'], f\"{d['speck_share']}:{d['dark_specks'] + d['bright_specks']}\")"; }
 
 rows=()
 for name in "${scenes[@]}"; do
@@ -163,11 +163,14 @@ md = ["# The default render against the path tracer at equal time" if not forced
 if forced:
     md[-2] = md[-2].replace("default: method (auto's rule)", "method")
 notes = []
+def specks(field):  # "share:count" -> "0.34% (108)"
+    share, count = field.split(":")
+    return f"{100 * float(share):.2f}% ({count})"
 for (name, res, method, rule, lights, spp, t, e, e2, sp, pspp, tp, ep, ep2, psp, truth, camera) in lines:
     ratio = float(ep) / max(float(e), 1e-12)
     verdict = (f"{method} wins" if forced else "default wins") if ratio > 1.1 else ("path wins" if ratio < 1 / 1.1 else "level")
-    md.append(f"| {name} | {res} | {method}{f' ({rule})' if rule else ''} | {lights} | {float(t):.1f} s | {float(e):.4f} | {float(e2):.4f} | {100 * float(sp):.2f}% | "
-              f"{pspp} | {float(tp):.1f} s | {float(ep):.4f} | {float(ep2):.4f} | {100 * float(psp):.2f}% | {ratio:.2f} | {verdict} |")
+    md.append(f"| {name} | {res} | {method}{f' ({rule})' if rule else ''} | {lights} | {float(t):.1f} s | {float(e):.4f} | {float(e2):.4f} | {specks(sp)} | "
+              f"{pspp} | {float(tp):.1f} s | {float(ep):.4f} | {float(ep2):.4f} | {specks(psp)} | {ratio:.2f} | {verdict} |")
     notes.append(f"- {name}, {res}: truth {truth}." + (f" Camera-side supersampling: {camera}."
                                                  if method != "path" else ""))
     if method == "path" and not forced:
@@ -175,7 +178,7 @@ for (name, res, method, rule, lights, spp, t, e, e2, sp, pspp, tp, ep, ep2, psp,
                      "was closer to the truth at equal time (docs/methods/media-elements.md; docs/rendering.md, `auto`), so both columns are "
                      "the path tracer and differ only by seed and spp.")
 md += ["", "`level`: within 10%. The verdict is on rel_l1; rel_l2 weighs the brightest pixels most "
-       "(a visible light's edges and highlights), so read both. `specks`: the share of lit truth pixels "
+       "(a visible light's edges and highlights), so read both. `specks`: the share (and count) of lit truth pixels "
        "the image has below 0.3x the smallest or above 3x the largest truth value in their 3x3 neighbourhood "
        "(single-pixel black or bright dots; the truth's own edges never count; `lightfarm compare`). Truths:", ""] + notes + ["",
        "A path-traced truth carries its own noise (stated above): per pixel it is far above the image mean's, "
